@@ -1,0 +1,62 @@
+"""merger — occupancy-grid map merging for robots that share a common center.
+
+Implements section 3.3 of the thesis (``shared/reference/thesis-3.3-map-merging.txt``): exhaustive
+rotation search maximizing the modified similarity index ω̃ on a region of interest around the center,
+verification on the whole maps, three (in general N(N−1)/2) merge orders and the choice of the best
+verified one. Pure numpy/OpenCV: no I/O in the algorithms (file formats live in :mod:`merger.mapio`).
+"""
+
+from __future__ import annotations
+
+from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from .online import MapMessage, TeamMerger
+from .search import SEARCH_METHODS, Alignment, RotationProblem, register_method, search
+from .similarity import Counts, Similarity, birk_carpin, ncc, similarity_index
+from .superpose import fuse, superpose
+from .team import MapInput, MergeParams, OrderResult, TeamMergeResult, merge_orders, merge_team
+from .verify import Verification, verify
+
+__all__ = [
+    "FREE", "OCCUPIED", "UNKNOWN", "OccupancyGrid", "MapMessage", "TeamMerger", "SEARCH_METHODS",
+    "Alignment", "RotationProblem", "register_method", "search", "Counts", "Similarity", "birk_carpin",
+    "ncc", "similarity_index", "fuse", "superpose", "MapInput", "MergeParams", "OrderResult",
+    "TeamMergeResult", "merge_orders", "merge_team", "Verification", "verify", "align", "load_map",
+    "save_map",
+]
+
+
+def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = 8.0,
+          measure: str = "similarity", method: str = "reference") -> Alignment:
+    """Find the rotation θ of ``moving`` about its center onto ``ref`` about ``center_ref``.
+
+    Parameters
+    ----------
+    ref, moving : the two grids, each in its own frame.
+    center_ref, center_moving : the common center as (x, y) metres in each grid's frame
+        (``center_moving`` defaults to ``center_ref``).
+    roi_m : side of the square region of interest around the center, metres.
+    measure : "similarity" (ω̃, eq. 3.11), "birk_carpin" (ω, eq. 2.21) or "ncc".
+    method : "reference" (the thesis's 380-rotation exhaustive search) or another registered method.
+
+    Returns
+    -------
+    Alignment with ``theta_deg`` in [0, 360) such that x_ref = c_ref + R(θ)(x_moving − c_moving),
+    ``score``, counts, the coarse profile and the runner-up peak.
+    """
+    cm = center_ref if center_moving is None else center_moving
+    problem = RotationProblem(ref, moving, tuple(map(float, center_ref)), tuple(map(float, cm)), roi_m, measure)
+    return search(problem, method)
+
+
+def load_map(path):
+    """Read a ROS map_server map (YAML + PGM) into an :class:`OccupancyGrid`."""
+    from .mapio import load_map as _load
+
+    return _load(path)
+
+
+def save_map(grid: OccupancyGrid, path, **kw):
+    """Write a ROS map_server map (YAML + PGM) of ``grid``."""
+    from .mapio import save_map as _save
+
+    return _save(grid, path, **kw)

@@ -1,0 +1,82 @@
+"""Online merging state of one robot (thesis 3.3.1, online experiments).
+
+Each robot keeps the newest map of every teammate (and its own), tagged with the sender and a time
+stamp. Every new map triggers a merge cycle over all orders; an accepted hypothesis replaces the kept
+alignment, a rejected cycle never discards a good earlier one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .grid import OccupancyGrid
+from .team import MapInput, MergeParams, TeamMergeResult, merge_team
+
+
+@dataclass(frozen=True, eq=False)
+class MapMessage:
+    """A map as it travels: who made it, when (its stamp), the grid and the center in its frame."""
+
+    robot: str
+    stamp: float
+    grid: OccupancyGrid
+    center: tuple[float, float]
+
+
+@dataclass
+class TeamMerger:
+    """Per-robot merger state.
+
+    Parameters
+    ----------
+    self_name : the robot that merges; results are expressed in its map frame.
+    team : names of all robots whose maps are merged (``self_name`` included).
+    params : merge parameters.
+    min_maps : merge once this many maps are held (default: the whole team).
+    """
+
+    self_name: str
+    team: tuple[str, ...]
+    params: MergeParams = field(default_factory=MergeParams)
+    min_maps: int | None = None
+    maps: dict[str, MapMessage] = field(default_factory=dict)
+    current: TeamMergeResult | None = None
+    current_stamp: float | None = None
+    cycles: int = 0
+
+    def __post_init__(self) -> None:
+        self.team = tuple(self.team)
+        if self.self_name not in self.team:
+            raise ValueError(f"{self.self_name!r} is not in the team {self.team}")
+        if len(set(self.team)) != len(self.team):
+            raise ValueError(f"team names must be unique: {self.team}")
+
+    def receive(self, msg: MapMessage) -> bool:
+        """Store a map; an older stamp than the one held (out-of-order delivery) is dropped."""
+        if msg.robot not in self.team:
+            raise ValueError(f"map from {msg.robot!r}, who is not in the team {self.team}")
+        held = self.maps.get(msg.robot)
+        if held is not None and held.stamp >= msg.stamp:
+            return False
+        self.maps[msg.robot] = msg
+        return True
+
+    def ready(self) -> bool:
+        need = len(self.team) if self.min_maps is None else self.min_maps
+        return self.self_name in self.maps and len(self.maps) >= max(2, need)
+
+    def inputs(self) -> list[MapInput]:
+        """The held maps, own map first, then teammates in team order."""
+        names = [self.self_name] + [n for n in self.team if n != self.self_name and n in self.maps]
+        return [MapInput(n, self.maps[n].grid, self.maps[n].center) for n in names]
+
+    def update(self, msg: MapMessage, now: float | None = None) -> TeamMergeResult | None:
+        """Take a new map and run a merge cycle; returns the cycle (None if not ready or stale)."""
+        if not self.receive(msg) or not self.ready():
+            return None
+        result = merge_team(self.inputs(), self.params)
+        self.cycles += 1
+        if result.accepted:
+            self.current = result
+            self.current_stamp = msg.stamp if now is None else now
+        return result

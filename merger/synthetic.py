@@ -1,0 +1,177 @@
+"""Synthetic scenes and partial views for tests, benchmarks and demos (no simulator needed).
+
+A :class:`Scene` is plain 2-D geometry in a world frame (segments and circles). :func:`partial_view`
+rasterizes it into the frame of a map whose origin is a robot's start pose and casts rays through that
+raster from a few viewpoints, so the view has free space up to the first obstacle, occupied cells where
+rays hit, and unknown behind — the shape of a real local map. circsim produces maps the full way
+(pymunk world, laser, SLAM); this module stays inside merger so that merger is testable on its own.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Segments (K, 2, 2) and circles (M, 3: x, y, r) in the world frame, and the common center."""
+
+    segments: np.ndarray
+    circles: np.ndarray
+    center: tuple[float, float] = (0.0, 0.0)
+    meta: dict = field(default_factory=dict)
+
+
+def rectangle_segments(cx, cy, w, h, yaw_deg=0.0) -> np.ndarray:
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    pts = np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]])
+    pts = pts @ np.array([[c, -s], [s, c]]).T + [cx, cy]
+    return np.stack([pts, np.roll(pts, -1, axis=0)], axis=1)
+
+
+def room_scene(rng: np.random.Generator | None = None, *, room=(8.0, 6.0), n_boxes: int = 4,
+               pillar_offset=(1.4, 0.9), pillar_radius=0.15) -> Scene:
+    """A room with two pillars point-symmetric about the center and ``n_boxes`` random boxes.
+
+    The boxes break the pillars' symmetry (as the chairs and boxes of the thesis's scenes do). With
+    ``n_boxes=0`` the scene is point-symmetric up to the room's walls.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    w, h = room
+    segs = [rectangle_segments(0.0, 0.0, w, h)]
+    px, py = pillar_offset
+    circles = [[px, py, pillar_radius], [-px, -py, pillar_radius]]
+    placed = 0
+    while placed < n_boxes:
+        r = rng.uniform(0.6, 2.6)
+        a = rng.uniform(0, 2 * math.pi)
+        cx, cy = r * math.cos(a), r * math.sin(a)
+        if min(math.hypot(cx - x, cy - y) for x, y, _ in circles) < 0.7:
+            continue
+        segs.append(rectangle_segments(cx, cy, rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.7),
+                                       rng.uniform(0, 90)))
+        circles.append([cx, cy, 0.0])  # keep boxes apart; radius 0 circles are not drawn
+        placed += 1
+    circles = np.array([c for c in circles if c[2] > 0], np.float64)
+    return Scene(np.concatenate(segs), circles, (0.0, 0.0), {"room": room})
+
+
+def world_to_frame(xy, pose) -> np.ndarray:
+    """World points into the frame of ``pose`` = (x, y, yaw_rad)."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    d = np.asarray(xy, np.float64) - [x, y]
+    return d @ np.array([[c, s], [-s, c]]).T
+
+
+def rasterize(scene: Scene, frame_pose, shape, resolution, origin) -> np.ndarray:
+    """Boolean (H, W) image of the scene's surfaces drawn in the frame of ``frame_pose`` (for display)."""
+    img = np.zeros(shape, np.uint8)
+    scale = (1 << 4) / resolution  # cv2 draws with 4 fractional bits (shift=4); pixel centre = cell centre
+    org = np.asarray(origin)
+
+    def px(p):
+        q = ((world_to_frame(p, frame_pose) - org) / resolution - 0.5) * (1 << 4)
+        return tuple(int(round(v)) for v in q)
+
+    for a, b in scene.segments:
+        cv2.line(img, px(a), px(b), 1, 1, cv2.LINE_8, 4)
+    for x, y, r in scene.circles:
+        cv2.circle(img, px([x, y]), int(round(r * scale)), 1, 1, cv2.LINE_8, 4)
+    return img.astype(bool)
+
+
+def ray_cast(scene: Scene, origin_xy, angles: np.ndarray, range_max: float) -> np.ndarray:
+    """Exact ranges of rays from ``origin_xy`` to the first segment or circle (inf for no hit)."""
+    o = np.asarray(origin_xy, np.float64)
+    d = np.stack([np.cos(angles), np.sin(angles)], axis=1)  # (B, 2)
+    best = np.full(angles.size, np.inf)
+    if len(scene.segments):
+        a, b = scene.segments[:, 0], scene.segments[:, 1]  # (K, 2)
+        e = b - a
+        denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (B, K)
+        ao = a[None] - o
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (ao[..., 0] * e[None, :, 1] - ao[..., 1] * e[None, :, 0]) / denom
+            u = (ao[..., 0] * d[:, None, 1] - ao[..., 1] * d[:, None, 0]) / denom
+        ok = (np.abs(denom) > 1e-12) & (t >= 0) & (u >= 0) & (u <= 1)
+        best = np.minimum(best, np.where(ok, t, np.inf).min(axis=1))
+    if len(scene.circles):
+        c, r = scene.circles[:, :2], scene.circles[:, 2]
+        oc = o - c  # (M, 2)
+        bq = d @ oc.T  # (B, M)
+        cq = (oc ** 2).sum(axis=1) - r ** 2
+        disc = bq ** 2 - cq[None]
+        with np.errstate(invalid="ignore"):
+            t = -bq - np.sqrt(disc)
+        ok = (disc >= 0) & (t >= 0)
+        best = np.minimum(best, np.where(ok, t, np.inf).min(axis=1))
+    best[best > range_max] = np.inf
+    return best
+
+
+def trace(states: np.ndarray, origin_cells: np.ndarray, angles: np.ndarray, ranges: np.ndarray,
+          range_max_cells: float) -> None:
+    """Mark free cells along each ray and the occupied cell at each hit (in place)."""
+    h, w = states.shape
+    finite = np.isfinite(ranges)
+    length = np.where(finite, ranges, range_max_cells)
+    steps = np.arange(0.0, range_max_cells, 0.5)
+    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    pts = origin_cells + dirs[:, None, :] * steps[None, :, None]
+    col, row = np.floor(pts[..., 0]).astype(np.int64), np.floor(pts[..., 1]).astype(np.int64)
+    seen = (steps[None, :] < length[:, None] - 0.5) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    cells = row[seen] * w + col[seen]
+    flat = states.ravel()
+    flat[cells[flat[cells] != OCCUPIED_S]] = FREE_S
+    hit = origin_cells + dirs[finite] * ranges[finite, None]
+    hc, hr = np.floor(hit[:, 0]).astype(np.int64), np.floor(hit[:, 1]).astype(np.int64)
+    ok = (hc >= 0) & (hc < w) & (hr >= 0) & (hr < h)
+    flat[hr[ok] * w + hc[ok]] = OCCUPIED_S
+
+
+def partial_view(scene: Scene, frame_pose, viewpoints_world, *, resolution: float = 0.05,
+                 size_m: float = 12.0, range_m: float = 5.6, beams: int = 720,
+                 noise: float = 0.0, rng: np.random.Generator | None = None) -> tuple[OccupancyGrid, tuple]:
+    """A local map of ``scene`` in the frame of ``frame_pose`` seen from ``viewpoints_world``.
+
+    Rays are cast exactly against the geometry (360° scans of ``beams`` rays from every viewpoint) and
+    traced into a grid in the map frame: free along the ray, occupied at the hit. Returns the grid
+    (square ``size_m`` centred on the frame's origin) and the scene's center in that frame.
+    ``noise`` flips that fraction of the known cells to the other known state.
+    """
+    n = int(round(size_m / resolution))
+    origin = np.array([-n * resolution / 2.0, -n * resolution / 2.0])
+    states = np.zeros((n, n), np.uint8)
+    angles = np.linspace(0, 2 * np.pi, beams, endpoint=False)
+    for vp in np.atleast_2d(viewpoints_world):
+        ranges = ray_cast(scene, vp, angles, range_m)
+        vp_cells = (world_to_frame(vp, frame_pose) - origin) / resolution
+        trace(states, vp_cells, angles - frame_pose[2], ranges / resolution, range_m / resolution)
+    if noise > 0:
+        rng = np.random.default_rng(0) if rng is None else rng
+        known = np.flatnonzero(states.ravel() != UNKNOWN_S)
+        flip = rng.choice(known, size=int(noise * known.size), replace=False)
+        flat = states.ravel()
+        flat[flip] = np.where(flat[flip] == FREE_S, OCCUPIED_S, FREE_S)
+    center = tuple(world_to_frame(scene.center, frame_pose).tolist())
+    return OccupancyGrid(states, resolution, tuple(origin.tolist())), center
+
+
+def robot_pose_on_circle(angle_deg: float, radius: float, center=(0.0, 0.0), yaw_offset_deg: float = 0.0):
+    """Pose (x, y, yaw_rad) on a circle, facing the center (plus an offset)."""
+    a = math.radians(angle_deg)
+    x, y = center[0] + radius * math.cos(a), center[1] + radius * math.sin(a)
+    return (x, y, a + math.pi + math.radians(yaw_offset_deg))
+
+
+def arc_viewpoints(angle_deg: float, half_arc_deg: float, radius: float, center=(0.0, 0.0), k: int = 5):
+    """Viewpoints on the circle spread over angle ± half_arc (the offline displacement experiment)."""
+    a = np.radians(np.linspace(angle_deg - half_arc_deg, angle_deg + half_arc_deg, k))
+    return np.stack([center[0] + radius * np.cos(a), center[1] + radius * np.sin(a)], axis=1)

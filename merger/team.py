@@ -1,0 +1,207 @@
+"""Team merging: merge orders, verification on whole maps, choice of the hypothesis (thesis 3.3.1).
+
+For three maps the thesis evaluates three orders (3.10): a pair (1,2), (1,3) or (2,3) is aligned first,
+then the third map is aligned onto the superposition of the pair. Here an *order* is a sequence of map
+indices; its first two are the first pair and every further map is aligned onto the superposition of
+all maps before it. :func:`merge_orders` gives one order per pair, so N maps give N(N−1)/2 orders (the
+thesis's three for N = 3) and nothing below assumes N = 3.
+
+Every order is expressed in the frame of map 0 (the robot that merges) and verified on the whole maps:
+ν_ij = ω̃(m*_i, m*_j) for every pair, accepted when all pass (:mod:`merger.verify`). Among accepted
+orders the highest Σν wins.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from .grid import OccupancyGrid
+from .search import Alignment, RotationProblem, angle_diff_deg, search, wrap_deg
+from .superpose import fuse, superpose
+from .transform import canvas, paste, warp_grid
+from .verify import Verification, pairwise, verify
+
+VERIFICATIONS = ("whole_map", "roi_score")
+
+
+@dataclass(frozen=True)
+class MergeParams:
+    """Parameters of a merge cycle.
+
+    roi_m : side of the square region of interest around the center, metres.
+    measure : similarity maximized by the search ("similarity", "birk_carpin" or "ncc").
+    method : search method name (see :data:`merger.search.SEARCH_METHODS`).
+    verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
+        method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
+        cross-correlation method, which had only a threshold on the correlation coefficient).
+    """
+
+    roi_m: float = 8.0
+    measure: str = "similarity"
+    method: str = "reference"
+    verification: str = "whole_map"
+    nu_min: float = 0.6
+    min_support: int = 150
+    score_min: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.verification not in VERIFICATIONS:
+            raise ValueError(f"verification must be one of {VERIFICATIONS}, got {self.verification!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class MapInput:
+    """A map to merge: its owner's name, the grid (in the owner's frame) and the center in that frame."""
+
+    name: str
+    grid: OccupancyGrid
+    center: tuple[float, float]
+
+
+@dataclass(frozen=True, eq=False)
+class OrderResult:
+    """One merge order's hypothesis and its verification.
+
+    theta_deg : per map name, the rotation onto map 0's frame (map 0 itself: 0).
+    steps : (moving map name, Alignment) in the order they were searched; angles there are onto the
+        superposition's frame (the order's first map).
+    nu : per pair "A|B", the whole-map ω̃ (or the ROI score with verification "roi_score").
+    """
+
+    order: tuple[str, ...]
+    theta_deg: dict[str, float]
+    steps: tuple[tuple[str, Alignment], ...]
+    checks: dict[str, Verification]
+    accepted: bool
+    reason: str
+
+    @property
+    def nu(self) -> dict[str, float]:
+        return {k: v.nu for k, v in self.checks.items()}
+
+    @property
+    def nu_sum(self) -> float:
+        return float(sum(v.nu for v in self.checks.values()))
+
+    def angle_errors_deg(self, truth_deg: dict[str, float]) -> dict[str, float]:
+        """|wrap(θ − θ*)| per map against ground-truth rotations onto map 0's frame."""
+        return {k: abs(angle_diff_deg(self.theta_deg[k], truth_deg[k])) for k in self.theta_deg}
+
+    def to_dict(self) -> dict:
+        return {
+            "order": list(self.order), "theta_deg": dict(self.theta_deg), "accepted": self.accepted,
+            "reason": self.reason, "nu": self.nu, "nu_sum": self.nu_sum,
+            "support": {k: v.support for k, v in self.checks.items()},
+            "steps": [{"moving": n, **a.to_dict()} for n, a in self.steps],
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class TeamMergeResult:
+    """All orders of one merge cycle, the chosen one (if any) and the merged map in map 0's frame."""
+
+    frame: str
+    orders: tuple[OrderResult, ...]
+    chosen: OrderResult | None
+    merged: OccupancyGrid | None = field(repr=False)
+    layers: dict[str, OccupancyGrid] = field(repr=False)
+    wall_ms: float = 0.0
+
+    @property
+    def accepted(self) -> bool:
+        return self.chosen is not None
+
+    @property
+    def top(self) -> OrderResult:
+        """The best hypothesis of the cycle, accepted or not (highest Σν)."""
+        return self.chosen or max(self.orders, key=lambda o: o.nu_sum)
+
+    @property
+    def rejected(self) -> tuple[OrderResult, ...]:
+        return tuple(o for o in self.orders if not o.accepted)
+
+    def to_dict(self) -> dict:
+        return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
+                "chosen": self.chosen.to_dict() if self.chosen else None,
+                "orders": [o.to_dict() for o in self.orders]}
+
+
+def merge_orders(n: int) -> list[tuple[int, ...]]:
+    """One order per pair (a, b), a < b: the pair first, then the remaining maps by index."""
+    if n < 2:
+        raise ValueError(f"merging needs at least two maps, got {n}")
+    return [(a, b, *[k for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
+
+
+def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams):
+    """Search the rotations of one order; returns θ onto map 0 per map index and the search steps."""
+    first = maps[order[0]]
+    sup = first.grid
+    theta_first = {order[0]: 0.0}
+    steps = []
+    for k in order[1:]:
+        m = maps[k]
+        al = search(RotationProblem(sup, m.grid, first.center, m.center, params.roi_m, params.measure),
+                    params.method)
+        theta_first[k] = al.theta_deg
+        steps.append((m.name, al))
+        if k != order[-1]:
+            cv = canvas(sup, [(m.grid, al.theta_deg, m.center)], first.center)
+            sup = OccupancyGrid(superpose(paste(sup, cv).states,
+                                          warp_grid(m.grid, al.theta_deg, m.center, first.center, cv).states),
+                                cv.resolution, cv.origin)
+    # x_first = c_first + R(θ_f0)(x_0 − c_0)  ⇒  θ_0k = θ_fk − θ_f0
+    theta0 = {k: wrap_deg(theta_first[k] - theta_first[0]) for k in order}
+    return theta0, tuple(steps)
+
+
+def place_on_frame0(maps: list[MapInput], theta0: dict[int, float]) -> list[OccupancyGrid]:
+    """All maps resampled onto one canvas in map 0's frame."""
+    base = maps[0]
+    cv = canvas(base.grid, [(m.grid, theta0[i], m.center) for i, m in enumerate(maps) if i], base.center)
+    return [paste(base.grid, cv)] + [warp_grid(m.grid, theta0[i], m.center, base.center, cv)
+                                     for i, m in enumerate(maps) if i]
+
+
+def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams):
+    theta0, steps = align_order(maps, order, params)
+    layers = place_on_frame0(maps, theta0)
+    checks: dict[str, Verification] = {}
+    if params.verification == "whole_map":
+        for i, j in pairwise(layers):
+            label = f"{maps[i].name}|{maps[j].name}"
+            checks[label] = verify(layers[i].states, layers[j].states, nu_min=params.nu_min,
+                                   min_support=params.min_support, label=label)
+    else:
+        for name, al in steps:
+            ok = al.score >= params.score_min
+            checks[name] = Verification(al.score, al.counts, ok, "" if ok else
+                                        f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
+    failed = [c.reason for c in checks.values() if not c.passed]
+    res = OrderResult(tuple(maps[k].name for k in order), {maps[k].name: theta0[k] for k in order},
+                      steps, checks, not failed, "; ".join(failed))
+    return res, layers
+
+
+def merge_team(maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:
+    """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
+
+    Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
+    """
+    t0 = time.perf_counter()
+    evaluated = [evaluate_order(maps, o, params) for o in merge_orders(len(maps))]
+    accepted = [(r, lay) for r, lay in evaluated if r.accepted]
+    chosen, merged, layers = None, None, {}
+    if accepted:
+        chosen, lay = max(accepted, key=lambda rl: rl[0].nu_sum)
+        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
+        layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
+    return TeamMergeResult(maps[0].name, tuple(r for r, _ in evaluated), chosen, merged, layers,
+                           (time.perf_counter() - t0) * 1e3)
+
+
+def fused_layers(maps: list[MapInput], theta_deg: dict[str, float]) -> list[OccupancyGrid]:
+    """The maps placed on map 0's frame with given rotations (e.g. a kept earlier alignment)."""
+    return place_on_frame0(maps, {i: theta_deg[m.name] for i, m in enumerate(maps)})
+

@@ -1,0 +1,111 @@
+"""Rotation of a grid about its center point onto another grid's frame (nearest neighbour on states).
+
+An alignment of map j onto map i is ``x_i = c_i + R(θ)(x_j − c_j)`` (DESIGN.md). To resample map j in
+frame i we go backwards: every target point ``x_i`` looks up the cell of map j that contains
+``c_j + R(−θ)(x_i − c_i)``. Looking up the *containing* cell of a point is nearest-neighbour
+resampling on cell centres, so no state is ever invented; points outside map j are unknown.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .grid import UNKNOWN_S, OccupancyGrid
+
+
+def rotation(theta_deg: float) -> np.ndarray:
+    t = math.radians(theta_deg)
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, -s], [s, c]])
+
+
+def apply_alignment(xy_j, theta_deg: float, center_j, center_i) -> np.ndarray:
+    """Map points of frame j into frame i: ``c_i + R(θ)(x_j − c_j)``."""
+    xy_j = np.asarray(xy_j, np.float64)
+    return np.asarray(center_i, np.float64) + (xy_j - np.asarray(center_j, np.float64)) @ rotation(theta_deg).T
+
+
+def sample_nearest(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
+    """States of the cells of ``grid`` that contain the world points ``xy`` (..., 2); unknown outside."""
+    cr = np.floor(grid.world_to_cell(xy)).astype(np.int64)
+    col, row = cr[..., 0], cr[..., 1]
+    inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
+    out = np.full(col.shape, UNKNOWN_S, np.uint8)
+    out[inside] = grid.states[row[inside], col[inside]]
+    return out
+
+
+def roi_cells(roi_m: float, resolution: float) -> int:
+    """Side of the square region of interest in cells (at least 1)."""
+    return max(1, int(round(roi_m / resolution)))
+
+
+def roi_offsets(n: int, resolution: float) -> np.ndarray:
+    """(n, n, 2) offsets of a square lattice of cell centres centred on (0, 0); row index grows with y."""
+    k = (np.arange(n) - (n - 1) / 2.0) * resolution
+    gx, gy = np.meshgrid(k, k)
+    return np.stack([gx, gy], axis=-1)
+
+
+def extract_roi(grid: OccupancyGrid, center, n: int) -> np.ndarray:
+    """The (n, n) states of ``grid`` on a square lattice of its own cell size centred on ``center``."""
+    return sample_nearest(grid, np.asarray(center, np.float64) + roi_offsets(n, grid.resolution))
+
+
+def rotated_roi(moving: OccupancyGrid, theta_deg: float, center_moving, center_ref, n: int,
+                resolution: float) -> np.ndarray:
+    """The moving map's region of interest rotated by θ, on the reference ROI lattice.
+
+    The moving ROI is the square of side ``n * resolution`` centred on ``center_moving`` in the moving
+    map's own frame (the thesis's roi_2); after rotation its corners leave the reference square and
+    the reference square's corners are unknown (outside the rotated roi_2).
+    """
+    d = roi_offsets(n, resolution) @ rotation(-theta_deg).T  # offsets in the moving frame
+    half = n * resolution / 2.0
+    pts = np.asarray(center_moving, np.float64) + d
+    out = sample_nearest(moving, pts)
+    out[(np.abs(d[..., 0]) >= half) | (np.abs(d[..., 1]) >= half)] = UNKNOWN_S
+    return out
+
+
+def warp_grid(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
+              target: OccupancyGrid) -> OccupancyGrid:
+    """Resample the whole ``moving`` grid into the geometry (shape, resolution, origin) of ``target``."""
+    rows, cols = np.indices(target.shape)
+    pts_target = target.cell_center(rows, cols)
+    pts_moving = apply_alignment(pts_target, -theta_deg, center_target, center_moving)
+    return OccupancyGrid(sample_nearest(moving, pts_moving), target.resolution, target.origin)
+
+
+def canvas(ref: OccupancyGrid, placed: list[tuple[OccupancyGrid, float, tuple[float, float]]],
+           center_ref) -> OccupancyGrid:
+    """An all-unknown grid on ``ref``'s cell lattice covering ``ref`` and every placed map.
+
+    ``placed`` holds (grid, θ onto ref, grid's center). The canvas extends ``ref`` by whole cells so
+    that ``ref`` copies onto it without resampling.
+    """
+    x0, x1, y0, y1 = ref.extent
+    for g, theta, c in placed:
+        gx0, gx1, gy0, gy1 = g.extent
+        corners = np.array([[gx0, gy0], [gx1, gy0], [gx0, gy1], [gx1, gy1]])
+        p = apply_alignment(corners, theta, c, center_ref)
+        x0, x1 = min(x0, p[:, 0].min()), max(x1, p[:, 0].max())
+        y0, y1 = min(y0, p[:, 1].min()), max(y1, p[:, 1].max())
+    r = ref.resolution
+    ox, oy = ref.origin
+    c0 = math.floor((x0 - ox) / r + 1e-9)
+    r0 = math.floor((y0 - oy) / r + 1e-9)
+    c1 = math.ceil((x1 - ox) / r - 1e-9)
+    r1 = math.ceil((y1 - oy) / r - 1e-9)
+    return OccupancyGrid.unknown(r1 - r0, c1 - c0, r, (ox + c0 * r, oy + r0 * r))
+
+
+def paste(ref: OccupancyGrid, target: OccupancyGrid) -> OccupancyGrid:
+    """Copy ``ref`` into ``target``'s geometry (same lattice, as built by :func:`canvas`)."""
+    dc = int(round((ref.origin[0] - target.origin[0]) / target.resolution))
+    dr = int(round((ref.origin[1] - target.origin[1]) / target.resolution))
+    out = np.zeros(target.shape, np.uint8)
+    out[dr:dr + ref.height, dc:dc + ref.width] = ref.states
+    return OccupancyGrid(out, target.resolution, target.origin)

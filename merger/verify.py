@@ -1,0 +1,46 @@
+"""Verification of an alignment on whole maps (thesis 3.3.1, eq. 3.12, and the online support rule).
+
+An alignment is accepted when ω̃ computed on the whole aligned maps is at least ``nu_min`` *and* its
+support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
+hypothesis is rejected in that case (favouring false negatives over false merges).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .similarity import Counts, similarity_index
+
+
+@dataclass(frozen=True)
+class Verification:
+    nu: float
+    counts: Counts
+    passed: bool
+    reason: str = ""
+
+    @property
+    def support(self) -> int:
+        return self.counts.support
+
+
+def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
+           label: str = "") -> Verification:
+    """ω̃ of two aligned whole maps with the acceptance rule; ``reason`` says why it failed."""
+    s = similarity_index(a, b)
+    name = f"ν({label})" if label else "ν"
+    if s.counts.support < min_support:
+        return Verification(s.value, s.counts, False,
+                            f"support of {name} = {s.counts.support} < min_support {min_support}")
+    if s.value < nu_min:
+        return Verification(s.value, s.counts, False, f"{name} = {s.value:.3f} < ν_min {nu_min:g}")
+    return Verification(s.value, s.counts, True)
+
+
+def pairwise(layers: list[np.ndarray]) -> list[tuple[int, int]]:
+    """Index pairs (i, j), i < j, of a list of aligned layers."""
+    n = len(layers)
+    return [(i, j) for i in range(n) for j in range(i + 1, n)]
+

@@ -35,16 +35,17 @@ def rectangle_segments(cx, cy, w, h, yaw_deg=0.0) -> np.ndarray:
     return np.stack([pts, np.roll(pts, -1, axis=0)], axis=1)
 
 
-def room_scene(rng: np.random.Generator | None = None, *, room=(8.0, 6.0), n_boxes: int = 4,
-               pillar_offset=(1.4, 0.9), pillar_radius=0.15) -> Scene:
-    """A room with two pillars point-symmetric about the center and ``n_boxes`` random boxes.
+def room_scene(rng: np.random.Generator | None = None, *, room=(8.0, 6.0), room_center=(0.7, 0.4),
+               n_boxes: int = 4, pillar_offset=(1.4, 0.9), pillar_radius=0.15) -> Scene:
+    """A room with two pillars point-symmetric about the center (0, 0) and ``n_boxes`` random boxes.
 
-    The boxes break the pillars' symmetry (as the chairs and boxes of the thesis's scenes do). With
-    ``n_boxes=0`` the scene is point-symmetric up to the room's walls.
+    The boxes break the pillars' symmetry (as the chairs and boxes of the thesis's scenes do). The
+    room is off-center by ``room_center``, so its walls disagree under a 180° rotation; with
+    ``n_boxes=0`` and ``room_center=(0, 0)`` the scene is point-symmetric.
     """
     rng = np.random.default_rng(0) if rng is None else rng
     w, h = room
-    segs = [rectangle_segments(0.0, 0.0, w, h)]
+    segs = [rectangle_segments(room_center[0], room_center[1], w, h)]
     px, py = pillar_offset
     circles = [[px, py, pillar_radius], [-px, -py, pillar_radius]]
     placed = 0

@@ -41,7 +41,7 @@ class MergeParams:
     measure: str = "similarity"
     method: str = "reference"
     verification: str = "whole_map"
-    nu_min: float = 0.6
+    nu_min: float = 0.4
     min_support: int = 150
     score_min: float = 0.5
 

@@ -1,0 +1,65 @@
+"""Three-order team merging and the online state, checked against the generated scenes' truth."""
+
+import numpy as np
+
+from merger.online import MapMessage, TeamMerger
+from merger.search import angle_diff_deg
+from merger.superpose import fuse, superpose
+from merger.team import MapInput, MergeParams, merge_orders, merge_team
+
+U, F, O = 0, 1, 2
+
+
+def test_superpose_gives_priority_to_occupied():
+    a = np.array([U, U, U, F, F, F, O, O, O], np.uint8)
+    b = np.array([U, F, O, U, F, O, U, F, O], np.uint8)
+    assert superpose(a, b).tolist() == [U, U, O, U, F, O, O, O, O]
+    assert fuse([a, b]).tolist() == [U, F, O, F, F, O, O, O, O]
+
+
+def test_merge_orders_are_the_three_pairs_and_general_in_n():
+    assert merge_orders(3) == [(0, 1, 2), (0, 2, 1), (1, 2, 0)]
+    assert merge_orders(2) == [(0, 1)]
+    orders = merge_orders(5)
+    assert len(orders) == 10 and all(sorted(o) == list(range(5)) for o in orders)
+
+
+def test_three_maps_merge_correctly(team_views):
+    _, names, maps, truth = team_views
+    inputs = [MapInput(n, g, c) for n, (g, c) in zip(names, maps, strict=True)]
+    res = merge_team(inputs, MergeParams(roi_m=8.0))
+    assert res.accepted and res.frame == "Lyon"
+    assert len(res.orders) == 3
+    assert res.chosen.nu_sum == max(o.nu_sum for o in res.orders if o.accepted)
+    for n in names:
+        assert abs(angle_diff_deg(res.chosen.theta_deg[n], truth[n])) <= 1.0
+    assert set(res.chosen.nu) == {"Lyon|Auckland", "Lyon|Nevers", "Auckland|Nevers"}
+    assert res.merged.count()["occupied"] > max(g.count()["occupied"] for g, _ in maps)
+    assert set(res.layers) == set(names)
+
+
+def test_rejections_carry_their_reason(team_views):
+    _, names, maps, _ = team_views
+    inputs = [MapInput(n, g, c) for n, (g, c) in zip(names, maps, strict=True)]
+    res = merge_team(inputs, MergeParams(roi_m=8.0, min_support=10**7))
+    assert not res.accepted and res.merged is None
+    assert all("min_support" in o.reason for o in res.rejected)
+    assert res.top in res.orders
+
+
+def test_online_state_keeps_last_accepted_alignment(team_views):
+    _, names, maps, truth = team_views
+    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0))
+    assert tm.update(MapMessage("Lyon", 1.0, *maps[0])) is None  # not all maps yet
+    assert tm.update(MapMessage("Auckland", 1.0, *maps[1])) is None
+    res = tm.update(MapMessage("Nevers", 1.5, *maps[2]))
+    assert res is not None and res.accepted and tm.current is res
+    # an older map arriving late is dropped, no cycle
+    assert tm.update(MapMessage("Nevers", 1.2, *maps[2])) is None
+    # a useless newer map (all unknown) makes the cycle reject; the good alignment is kept
+    g, c = maps[1]
+    blank = type(g).unknown(g.height, g.width, g.resolution, g.origin)
+    res2 = tm.update(MapMessage("Auckland", 3.0, blank, c))
+    assert res2 is not None and not res2.accepted
+    assert tm.current is res and tm.cycles == 2
+    assert abs(angle_diff_deg(tm.current.chosen.theta_deg["Nevers"], truth["Nevers"])) <= 1.0

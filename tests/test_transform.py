@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+
+from merger.grid import OccupancyGrid
+from merger.transform import (apply_alignment, canvas, extract_roi, paste, rotated_roi, sample_nearest,
+                              warp_grid)
+
+U, F, O = 0, 1, 2
+
+
+def test_apply_alignment_definition():
+    # x_i = c_i + R(θ)(x_j − c_j): 90° maps (1, 0) relative to c_j onto (0, 1) relative to c_i
+    p = apply_alignment([[3.0, 2.0]], 90.0, (2.0, 2.0), (10.0, 10.0))
+    np.testing.assert_allclose(p, [[10.0, 11.0]], atol=1e-12)
+
+
+def test_sample_nearest_uses_containing_cell_and_unknown_outside():
+    g = OccupancyGrid(np.array([[F, O], [U, F]], np.uint8), 1.0, (0.0, 0.0))
+    pts = np.array([[0.5, 0.5], [1.99, 0.01], [0.2, 1.7], [-0.1, 0.5], [2.0, 0.5]])
+    assert sample_nearest(g, pts).tolist() == [F, O, U, U, U]
+
+
+def test_rotation_by_90_degrees_is_exact():
+    rng = np.random.default_rng(0)
+    s = rng.integers(0, 3, (21, 21)).astype(np.uint8)
+    g = OccupancyGrid(s, 0.05, (-0.525, -0.525))  # center (0, 0) at the middle of cell (10, 10)
+    for k in range(4):
+        w = warp_grid(g, 90.0 * k, (0.0, 0.0), (0.0, 0.0), g)
+        # rows grow with y, so a counter-clockwise turn in the world is np.rot90's clockwise turn
+        np.testing.assert_array_equal(w.states, np.rot90(s, -k))
+
+
+def test_roi_crop_and_rotation_identity():
+    rng = np.random.default_rng(1)
+    g = OccupancyGrid(rng.integers(0, 3, (40, 40)).astype(np.uint8), 0.05, (0.0, 0.0))
+    c = (1.0, 1.0)
+    np.testing.assert_array_equal(rotated_roi(g, 0.0, c, c, 10, 0.05), extract_roi(g, c, 10))
+    np.testing.assert_array_equal(extract_roi(g, c, 10), g.states[15:25, 15:25])
+    # a 45° rotation leaves the reference square's corners outside the rotated moving square
+    r45 = rotated_roi(g, 45.0, c, c, 10, 0.05)
+    assert r45[0, 0] == U and r45[-1, -1] == U
+
+
+def test_canvas_covers_all_and_paste_keeps_ref():
+    ref = OccupancyGrid(np.full((10, 20), O, np.uint8), 0.1, (0.0, 0.0))
+    mov = OccupancyGrid(np.full((10, 20), F, np.uint8), 0.1, (0.0, 0.0))
+    cv = canvas(ref, [(mov, 90.0, (0.0, 0.0))], (0.0, 0.0))
+    x0, x1, y0, y1 = cv.extent
+    assert x0 <= -1.0 + 1e-9 and x1 >= 2.0 - 1e-9 and y0 <= 0 and y1 >= 2.0 - 1e-9
+    p = paste(ref, cv)
+    assert p.count()["occupied"] == ref.count()["occupied"]
+    w = warp_grid(mov, 90.0, (0.0, 0.0), (0.0, 0.0), cv)
+    assert w.count()["free"] == pytest.approx(200, abs=10)

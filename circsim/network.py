@@ -1,0 +1,99 @@
+"""A simulated network between robots: latency, jitter and loss, delivered by simulated time.
+
+Messages sent at time t arrive at ``t + max(0, latency + jitter * N(0, 1))`` unless lost (probability
+``loss``). Each recipient has an inbox; :meth:`Network.deliver` hands over everything that has
+arrived by ``now`` in arrival order, so a later message can overtake an earlier one.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    """Map exchange parameters.
+
+    period_s : how often robots send their map (used by the simulation loop; the thesis used 2 s).
+    latency_s : mean one-way delay.
+    jitter_s : standard deviation of the Gaussian delay noise (delays are clipped at 0).
+    loss : probability that a message is lost.
+    """
+
+    period_s: float = 2.0
+    latency_s: float = 0.1
+    jitter_s: float = 0.0
+    loss: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)  # payloads are arrays or grids: identity, not value, comparison
+class Message:
+    """A message in flight or delivered; ``seq`` orders messages sent in the same network."""
+
+    sender: str
+    recipient: str
+    sent_s: float
+    arrive_s: float
+    payload: Any
+    seq: int
+
+
+class Network:
+    """Point-to-point message passing with per-recipient inboxes.
+
+    Parameters
+    ----------
+    config : latency, jitter and loss.
+    rng : source of the delay and loss draws (one normal and one uniform per message sent).
+    """
+
+    def __init__(self, config: NetworkConfig, rng) -> None:
+        self.config = config
+        self._rng = rng
+        self._inbox: dict[str, list[tuple[float, int, Message]]] = {}
+        self._seq = 0
+        self.sent = 0
+        self.lost = 0
+        self.delivered = 0
+
+    def send(self, sender: str, recipient: str, payload: Any, now: float) -> Message | None:
+        """Send ``payload``; returns the message in flight, or ``None`` if it was lost."""
+        z = float(self._rng.standard_normal())
+        u = float(self._rng.random())
+        self.sent += 1
+        seq = self._seq
+        self._seq += 1
+        if u < self.config.loss:
+            self.lost += 1
+            return None
+        delay = max(0.0, self.config.latency_s + self.config.jitter_s * z)
+        msg = Message(sender, recipient, float(now), float(now) + delay, payload, seq)
+        heapq.heappush(self._inbox.setdefault(recipient, []), (msg.arrive_s, seq, msg))
+        return msg
+
+    def broadcast(self, sender: str, recipients, payload: Any, now: float) -> list[Message]:
+        """Send ``payload`` to every recipient but the sender; returns the messages not lost."""
+        out = []
+        for r in recipients:
+            if r != sender:
+                m = self.send(sender, r, payload, now)
+                if m is not None:
+                    out.append(m)
+        return out
+
+    def deliver(self, recipient: str, now: float) -> list[Message]:
+        """Messages for ``recipient`` that have arrived by ``now``, in arrival order (ties: send order)."""
+        q = self._inbox.get(recipient)
+        out: list[Message] = []
+        while q and q[0][0] <= now:
+            out.append(heapq.heappop(q)[2])
+        self.delivered += len(out)
+        return out
+
+    def pending(self, recipient: str | None = None) -> int:
+        """Messages still in flight (to ``recipient``, or to anyone)."""
+        if recipient is not None:
+            return len(self._inbox.get(recipient, ()))
+        return sum(len(q) for q in self._inbox.values())

@@ -1,0 +1,387 @@
+"""Scenario files: YAML validated into typed, frozen dataclasses.
+
+A scenario is one experiment: the room and its objects, the robots on their circle, the laser, the
+SLAM, the center error, the network, the merger parameters and the outputs. Every section has
+defaults, so a scenario can be short (see ``circsim/scenarios/scene1.yaml``). Validation happens here,
+at the boundary: an unknown key, a wrong type or an out-of-range value raises :class:`ScenarioError`
+with one line naming the file, the key path and what was expected, e.g.
+``scene1.yaml: robots.speed_mps: expected a number > 0, got 'fast'``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import yaml
+
+from .laser import LaserConfig
+from .network import NetworkConfig
+from .slam import DriftConfig, LogOddsConfig, SlamConfig
+from .validate import Invalid, bad, choice, integer, join, number, optional_path, section, seq, string, vec2
+
+Vec2 = tuple[float, float]
+SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be used; the message is one line: file, key path, expectation."""
+
+
+@dataclass(frozen=True)
+class Room:
+    """Walls: a rectangle (``size_m`` [w, h] around ``center``) or explicit ``walls`` segments."""
+
+    size_m: Vec2 | None = (8.0, 6.0)
+    center: Vec2 | None = None
+    walls: tuple[tuple[float, float, float, float], ...] = ()
+
+    def wall_segments(self) -> tuple[tuple[float, float, float, float], ...]:
+        """All walls as (ax, ay, bx, by)."""
+        if self.size_m is None:
+            return self.walls
+        (cx, cy), (w, h) = self.center or (0.0, 0.0), self.size_m
+        c = [(cx - w / 2, cy - h / 2), (cx + w / 2, cy - h / 2), (cx + w / 2, cy + h / 2),
+             (cx - w / 2, cy + h / 2)]
+        return tuple((*c[i], *c[(i + 1) % 4]) for i in range(4))
+
+
+@dataclass(frozen=True)
+class Pillar:
+    center: Vec2
+    radius: float = 0.2
+
+
+@dataclass(frozen=True)
+class Chair:
+    """A chair of which only the four legs (circles on a square) are in the laser plane."""
+
+    type: ClassVar[str] = "chair"
+    center: Vec2
+    yaw_deg: float = 0.0
+    leg_spacing_m: float = 0.4
+    leg_radius_m: float = 0.02
+
+
+@dataclass(frozen=True)
+class OverturnedChair:
+    """A chair lying on its side: seat and back are two segments forming an L."""
+
+    type: ClassVar[str] = "overturned_chair"
+    center: Vec2
+    yaw_deg: float = 0.0
+    seat_m: float = 0.42
+    back_m: float = 0.45
+
+
+@dataclass(frozen=True)
+class Box:
+    type: ClassVar[str] = "box"
+    center: Vec2
+    size_m: Vec2 = (0.5, 0.5)
+    yaw_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    center: Vec2 = (0.0, 0.0)
+    room: Room = Room()
+    pillars: tuple[Pillar, ...] = ()
+    objects: tuple[Chair | OverturnedChair | Box, ...] = ()
+
+
+@dataclass(frozen=True)
+class OfflineMotion:
+    max_deg: float = 60.0
+    step_deg: float = 1.0
+
+
+@dataclass(frozen=True)
+class RobotsSpec:
+    """The robots on the circle (see :mod:`circsim.motion` for the heading rules)."""
+
+    names: tuple[str, ...] = ("Lyon", "Auckland", "Nevers")
+    radius_m: float = 1.75
+    start_angles_deg: tuple[float, ...] = (90.0, 210.0, 330.0)
+    heading: str = "center"
+    yaw_offsets_deg: tuple[float, ...] = (0.0, 0.0, 0.0)
+    speed_mps: float = 0.2
+    motion: str = "online"
+    offline: OfflineMotion = OfflineMotion()
+    body_radius_m: float = 0.18
+
+
+@dataclass(frozen=True)
+class CenterErrorSpec:
+    """Error on the common center given to each robot, metres in its map frame."""
+
+    magnitude_m: float = 0.0
+    per_robot: dict[str, Vec2] = field(default_factory=dict)
+
+    def vectors(self, names, rng: np.random.Generator) -> dict[str, Vec2]:
+        """Each robot's error: ``per_robot`` if given, else ``magnitude_m`` in a direction from ``rng``."""
+        angles = rng.uniform(0.0, 2.0 * math.pi, size=len(names))  # drawn for all: stable streams
+        return {n: self.per_robot.get(n, (self.magnitude_m * math.cos(a), self.magnitude_m * math.sin(a)))
+                for n, a in zip(names, angles, strict=True)}
+
+
+@dataclass(frozen=True)
+class MergerSettings:
+    """Merger parameters as data; the simulation loop builds ``merger.MergeParams`` from them."""
+
+    roi_m: float = 8.0
+    measure: str = "similarity"
+    method: str = "reference"
+    verification: str = "whole_map"
+    nu_min: float = 0.5
+    min_support: int = 200
+    score_min: float = 0.5
+    correct_tol_deg: float = 2.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    rrd: str | None = None
+    scan_log_hz: float = 2.0
+    json: str | None = None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario; build it with :func:`load_scenario` or :func:`scenario_from_dict`."""
+
+    name: str
+    description: str
+    seed: int
+    duration_s: float
+    dt_s: float
+    world: WorldSpec
+    robots: RobotsSpec
+    laser: LaserConfig
+    slam: SlamConfig
+    center_error: CenterErrorSpec
+    network: NetworkConfig
+    merger: MergerSettings
+    output: OutputSpec
+    source: str = field(default="<dict>", compare=False)
+    raw: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def with_overrides(self, assignments) -> Scenario:
+        """A copy with ``key.path=value`` assignments applied (values parsed as YAML) and re-validated."""
+        data = copy.deepcopy(self.raw)
+        pairs = []
+        for a in assignments:
+            key, sep, text = a.partition("=")
+            key = key.strip()
+            if not sep or not key:
+                raise ScenarioError(f"{self.source}: --set {a!r}: expected key.path=value")
+            try:
+                value = yaml.safe_load(text)
+            except yaml.YAMLError:
+                raise ScenarioError(f"{self.source}: --set {a}: value is not valid YAML") from None
+            _assign(data, key.split("."), value, f"{self.source}: --set {a}")
+            pairs.append((key, a))
+        try:
+            return _build(data, self.source)
+        except Invalid as e:
+            culprits = [a for k, a in pairs
+                        if e.path == k or e.path.startswith(k + ".") or k.startswith(e.path + ".")]
+            label = " ".join(f"--set {a}" for a in (culprits or [a for _, a in pairs]))
+            raise ScenarioError(f"{self.source} ({label}): {e.path}: {e.message}") from None
+
+
+def load_scenario(path) -> Scenario:
+    """Read and validate a scenario file."""
+    path = Path(path)
+    label = path.name
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise ScenarioError(f"{label}: cannot read file ({e.strerror})") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ScenarioError(f"{label}: invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
+    return scenario_from_dict({} if data is None else data, source=label, default_name=path.stem)
+
+
+def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenario") -> Scenario:
+    """Validate a plain mapping (as parsed from YAML) into a :class:`Scenario`."""
+    if isinstance(data, dict) and "name" not in data:
+        data = {"name": default_name, **data}
+    try:
+        return _build(data, source)
+    except Invalid as e:
+        raise ScenarioError(f"{source}: {e.path}: {e.message}") from None
+
+
+def scenario_to_dict(sc: Scenario) -> dict[str, Any]:
+    """The fully resolved scenario as plain JSON-able data (valid input to :func:`scenario_from_dict`)."""
+    return _plain(sc)
+
+
+def bundled_scenarios() -> dict[str, Path]:
+    """The scenarios shipped with circsim, by name (file stem)."""
+    return {p.stem: p for p in sorted(SCENARIO_DIR.glob("*.yaml"))}
+
+
+# --- validation -------------------------------------------------------------------------------------
+_POS, _NONNEG = number(gt=0), number(ge=0)
+_OBJECTS = {
+    "chair": section(Chair, {"type": string, "center": vec2(), "yaw_deg": number(), "leg_spacing_m": _POS,
+                             "leg_radius_m": _POS}, required=("center",)),
+    "overturned_chair": section(OverturnedChair, {"type": string, "center": vec2(), "yaw_deg": number(),
+                                                  "seat_m": _POS, "back_m": _POS}, required=("center",)),
+    "box": section(Box, {"type": string, "center": vec2(), "size_m": vec2(gt=0), "yaw_deg": number()},
+                   required=("center",)),
+}
+
+
+def _object(v, path):
+    kind = v.get("type") if isinstance(v, dict) else None
+    if kind not in _OBJECTS:
+        raise Invalid(join(path, "type") if isinstance(v, dict) else path,
+                      f"expected an object type, one of {', '.join(map(repr, _OBJECTS))}, got {kind!r}")
+    return _OBJECTS[kind](v, path)
+
+
+_SEG = seq(number(), "a wall [ax, ay, bx, by] of four numbers", length=4)
+_ROOM = {"size_m": vec2(gt=0), "center": vec2(), "walls": seq(_SEG, "a list of walls [ax, ay, bx, by]", 1)}
+_PILLAR = section(Pillar, {"center": vec2(), "radius": _POS}, required=("center",))
+_WORLD = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
+          "objects": seq(_object, "a list of objects")}
+_ROBOTS = {"names": seq(string, "a list of robot names", 1), "radius_m": _POS,
+           "start_angles_deg": seq(number(), "a list of numbers"), "heading": choice("center", "tangent"),
+           "yaw_offsets_deg": seq(number(), "a list of numbers"), "speed_mps": _POS,
+           "motion": choice("online", "offline"),
+           "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": _POS}),
+           "body_radius_m": _POS}
+_LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2), "range_max_m": _POS,
+                               "range_min_m": _NONNEG, "rate_hz": _POS, "noise_std_m": _NONNEG,
+                               "dropout": number(ge=0, lt=1)})
+_SLAM = section(SlamConfig, {
+    "resolution_m": _POS, "size_m": _POS,
+    "drift": section(DriftConfig, {"xy_m_per_m": _NONNEG, "yaw_deg_per_m": _NONNEG}),
+    "log_odds": section(LogOddsConfig, {"hit": _POS, "miss": number(lt=0), "clamp": _POS}),
+    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS})
+_NETWORK = section(NetworkConfig, {"period_s": _POS, "latency_s": _NONNEG, "jitter_s": _NONNEG,
+                                   "loss": number(ge=0, lt=1)})
+_MERGER = section(MergerSettings, {
+    "roi_m": _POS, "measure": choice("similarity", "birk_carpin", "ncc"),
+    "method": choice("reference", "fast"), "verification": choice("whole_map", "roi_score"),
+    "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
+    "correct_tol_deg": _POS})
+_OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path})
+_TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
+        "center_error", "network", "merger", "output")
+
+
+def _build(data, source: str) -> Scenario:
+    if not isinstance(data, dict):
+        raise bad("(top level)", "a mapping of scenario sections", data)
+    for k in data:
+        if k not in _TOP:
+            raise Invalid(str(k), f"unknown key; expected one of {', '.join(_TOP)}")
+    robots = _robots(data.get("robots"))
+    laser = _LASER(data.get("laser"), "laser")
+    if laser.range_min_m >= laser.range_max_m:
+        raise bad("laser.range_min_m", f"a number < laser.range_max_m ({laser.range_max_m:g})",
+                  laser.range_min_m)
+    slam = _SLAM(data.get("slam"), "slam")
+    if slam.free_thresh >= slam.occupied_thresh:
+        raise bad("slam.free_thresh", f"a number < slam.occupied_thresh ({slam.occupied_thresh:g})",
+                  slam.free_thresh)
+    one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
+    return Scenario(
+        name=string(data.get("name", "scenario"), "name"),
+        description=string(data.get("description", ""), "description"),
+        seed=integer(ge=0)(data.get("seed", 0), "seed"),
+        duration_s=_POS(data.get("duration_s", one_tour), "duration_s"),
+        dt_s=_POS(data.get("dt_s", 0.1), "dt_s"),
+        world=_world(data.get("world")), robots=robots, laser=laser, slam=slam,
+        center_error=_center_error(data.get("center_error"), robots.names),
+        network=_NETWORK(data.get("network"), "network"), merger=_MERGER(data.get("merger"), "merger"),
+        output=_OUTPUT(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
+
+
+def _world(v) -> WorldSpec:
+    w = section(lambda **kw: kw, _WORLD)(v, "world")  # room is checked below: it needs the center
+    center = w.get("center", WorldSpec.center)
+    room = w.get("room") or {}
+    if not isinstance(room, dict):
+        raise bad("world.room", "a mapping with size_m and center, or walls", room)
+    r = section(lambda **kw: kw, _ROOM)(room, "world.room")
+    if "walls" in r and ("size_m" in r or "center" in r):
+        raise Invalid("world.room", "expected either size_m (and center) or walls, not both")
+    room_obj = Room(None, None, r["walls"]) if "walls" in r else \
+        Room(r.get("size_m", Room.size_m), r.get("center", center))
+    return WorldSpec(center, room_obj, w.get("pillars", ()), w.get("objects", ()))
+
+
+def _robots(v) -> RobotsSpec:
+    r = section(lambda **kw: kw, _ROBOTS)(v, "robots")
+    names = r.get("names", RobotsSpec.names)
+    n = len(names)
+    if len(set(names)) != n:
+        raise bad("robots.names", "unique robot names", list(names))
+    if "names" in r and n != 3 and "start_angles_deg" not in r:
+        r["start_angles_deg"] = tuple(90.0 + k * 360.0 / n for k in range(n))
+    r.setdefault("yaw_offsets_deg", (0.0,) * n)
+    for key in ("start_angles_deg", "yaw_offsets_deg"):
+        if key in r and len(r[key]) != n:
+            raise bad(f"robots.{key}", f"a list of {n} numbers (one per robot)", list(r[key]))
+    spec = RobotsSpec(**r)
+    if spec.body_radius_m >= spec.radius_m:
+        raise bad("robots.body_radius_m", f"a number < robots.radius_m ({spec.radius_m:g})",
+                  spec.body_radius_m)
+    return spec
+
+
+def _center_error(v, names) -> CenterErrorSpec:
+    r = section(lambda **kw: kw, {"magnitude_m": _NONNEG, "per_robot": lambda x, p: x})(v, "center_error")
+    per = r.get("per_robot") or {}
+    if not isinstance(per, dict):
+        raise bad("center_error.per_robot", "a mapping robot name -> [dx, dy]", per)
+    out = {}
+    for k, x in per.items():
+        if k not in names:
+            raise bad(f"center_error.per_robot.{k}", f"a robot name (one of {', '.join(names)})", k)
+        out[k] = vec2()(x, f"center_error.per_robot.{k}")
+    return CenterErrorSpec(r.get("magnitude_m", 0.0), out)
+
+
+def _assign(data: dict, keys: list[str], value, label: str) -> None:
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.get(k) if isinstance(node, dict) else None
+        if nxt is None:
+            nxt = node[k] = {}
+        if not isinstance(nxt, dict):
+            raise ScenarioError(f"{label}: {'.'.join(keys[:i + 1])}: expected a mapping to set keys in, "
+                                f"got {nxt!r}")
+        node = nxt
+    node[keys[-1]] = value
+
+
+def _plain(v):
+    if is_dataclass(v):
+        out = {"type": v.type} if hasattr(type(v), "type") else {}
+        for f in fields(v):
+            if f.compare:
+                out[f.name] = _plain(getattr(v, f.name))
+        if isinstance(v, Room):
+            keep = ("walls",) if v.size_m is None else ("size_m", "center")
+            out = {k: out[k] for k in keep}
+        return out
+    if isinstance(v, tuple | list):
+        return [_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    return v

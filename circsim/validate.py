@@ -1,0 +1,117 @@
+"""Small checks that turn YAML-like data into typed values or raise :class:`Invalid`.
+
+Each check is a callable ``check(value, path) -> converted value``; ``path`` is the dotted key path
+used in the message (``robots.speed_mps``, ``world.objects[1].type``). :func:`section` builds a check
+for a mapping from a dict of per-key checks and a constructor, rejecting unknown keys. The scenario
+loader adds the file name and turns :class:`Invalid` into its one-line error.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class Invalid(Exception):
+    """A value at ``path`` that does not fit; ``message`` says what was expected."""
+
+    def __init__(self, path: str, message: str) -> None:
+        super().__init__(f"{path}: {message}")
+        self.path, self.message = path, message
+
+
+def bad(path: str, expected: str, v) -> Invalid:
+    return Invalid(path, f"expected {expected}, got {v!r}")
+
+
+def number(gt=None, ge=None, lt=None, le=None):
+    """A finite int or float (not a bool) within the given bounds, returned as float."""
+    low = ("(", gt) if gt is not None else ("[", ge) if ge is not None else None
+    high = (lt, ")") if lt is not None else (le, "]") if le is not None else None
+    if low and high:
+        bounds = f" in {low[0]}{low[1]}, {high[0]}{high[1]}"
+    elif low:
+        bounds = f" {'>' if gt is not None else '>='} {low[1]}"
+    elif high:
+        bounds = f" {'<' if lt is not None else '<='} {high[0]}"
+    else:
+        bounds = ""
+
+    def check(v, path):
+        ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        if not ok or (gt is not None and v <= gt) or (ge is not None and v < ge) \
+                or (lt is not None and v >= lt) or (le is not None and v > le):
+            raise bad(path, "a number" + bounds, v)
+        return float(v)
+    check.bounds = bounds
+    return check
+
+
+def integer(ge=None):
+    exp = "an integer" + (f" >= {ge}" if ge is not None else "")
+
+    def check(v, path):
+        if not isinstance(v, int) or isinstance(v, bool) or (ge is not None and v < ge):
+            raise bad(path, exp, v)
+        return int(v)
+    return check
+
+
+def string(v, path):
+    if not isinstance(v, str):
+        raise bad(path, "a string", v)
+    return v
+
+
+def choice(*options):
+    exp = "one of " + ", ".join(repr(o) for o in options)
+
+    def check(v, path):
+        if v not in options:
+            raise bad(path, exp, v)
+        return v
+    return check
+
+
+def optional_path(v, path):
+    if v is not None and not isinstance(v, str):
+        raise bad(path, "null or a path", v)
+    return v
+
+
+def seq(item, expected: str, min_len: int = 0, length: int | None = None):
+    """A list (or tuple) whose items pass ``item``; returned as a tuple."""
+    def check(v, path):
+        if not isinstance(v, list | tuple) or len(v) < min_len or (length is not None and len(v) != length):
+            raise bad(path, expected, v)
+        return tuple(item(x, f"{path}[{i}]") for i, x in enumerate(v))
+    return check
+
+
+def vec2(**bounds):
+    """``[x, y]``: two numbers with optional bounds on each."""
+    num = number(**bounds)
+    return seq(num, f"a list [x, y] of two numbers{num.bounds}", length=2)
+
+
+def section(cls, schema: dict, required=()):
+    """A mapping checked key by key with ``schema`` and passed to ``cls(**values)``.
+
+    Absent keys are left to ``cls``'s defaults; a ``type`` key (object discriminator) is checked
+    but not passed on.
+    """
+    def check(v, path):
+        v = {} if v is None else v
+        if not isinstance(v, dict):
+            raise bad(path, f"a mapping with keys {', '.join(schema)}", v)
+        for k in v:
+            if k not in schema:
+                raise Invalid(join(path, k), f"unknown key; expected one of {', '.join(schema)}")
+        for k in required:
+            if k not in v:
+                raise Invalid(join(path, k), "missing required key")
+        return cls(**{k: schema[k](x, join(path, k)) for k, x in v.items() if k != "type"})
+    return check
+
+
+def join(path: str, key) -> str:
+    return f"{path}.{key}" if path else str(key)

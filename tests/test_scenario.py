@@ -1,0 +1,191 @@
+"""Scenario loading, validation messages, overrides and the bundled scenes."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from circsim.scenario import (
+    Box,
+    Chair,
+    OverturnedChair,
+    Scenario,
+    ScenarioError,
+    bundled_scenarios,
+    load_scenario,
+    scenario_from_dict,
+    scenario_to_dict,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def write(tmp_path: Path, text: str, name: str = "scene.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def error_of(tmp_path: Path, text: str) -> str:
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(write(tmp_path, text))
+    msg = str(e.value)
+    assert "\n" not in msg
+    return msg
+
+
+def test_bundled_scenarios_load_and_round_trip():
+    found = bundled_scenarios()
+    assert {"scene1", "scene2"} <= set(found)
+    for name, path in found.items():
+        sc = load_scenario(path)
+        assert sc.name == name
+        d = scenario_to_dict(sc)
+        assert json.loads(json.dumps(d)) == d  # plain JSON-able
+        assert scenario_from_dict(d) == sc
+
+
+def test_top_level_symlink_points_at_bundled_scenarios():
+    link = REPO / "scenarios"
+    assert link.is_symlink() and not Path(link.readlink()).is_absolute()
+    assert (link / "scene1.yaml").resolve() == bundled_scenarios()["scene1"].resolve()
+
+
+def test_thesis_scenes_contents():
+    s1 = load_scenario(bundled_scenarios()["scene1"])
+    s2 = load_scenario(bundled_scenarios()["scene2"])
+    kinds1 = sorted(type(o).__name__ for o in s1.world.objects)
+    assert kinds1 == ["Chair", "Chair", "Chair", "OverturnedChair"]
+    assert all(isinstance(o, Box) for o in s2.world.objects) and len(s2.world.objects) == 4
+    for sc in (s1, s2):
+        assert sc.robots.names == ("Lyon", "Auckland", "Nevers")
+        assert sc.robots.motion == "online"
+        assert 1.5 <= sc.robots.radius_m <= 2.0
+        tour = 2 * math.pi * sc.robots.radius_m / sc.robots.speed_mps
+        assert sc.duration_s >= tour
+        # the pillars are point-symmetric about the center, the objects are not
+        c = np.array(sc.world.center)
+        p = [np.array(x.center) for x in sc.world.pillars]
+        assert len(p) == 2 and np.allclose(p[0] - c, c - p[1])
+        objs = np.array([o.center for o in sc.world.objects])
+        mirrored = 2 * c - objs
+        gaps = np.linalg.norm(mirrored[:, None] - objs[None], axis=2)
+        assert gaps.min() > 0.5
+
+
+def test_short_scenario_gets_defaults(tmp_path):
+    sc = load_scenario(write(tmp_path, "seed: 3\n"))
+    assert sc.name == "scene" and sc.seed == 3
+    assert sc.robots.names == ("Lyon", "Auckland", "Nevers")
+    assert sc.robots.start_angles_deg == (90.0, 210.0, 330.0)
+    assert sc.laser.fov_deg == 240 and sc.laser.range_max_m == 5.6
+    assert math.isclose(math.degrees(sc.laser.angle_increment), 0.36, abs_tol=0.005)
+    assert sc.slam.resolution_m == 0.05 and sc.slam.occupied_thresh == 0.65 and sc.slam.free_thresh == 0.196
+    assert sc.network.period_s == 2.0 and sc.dt_s == 0.1
+    assert sc.merger.as_dict()["roi_m"] == 8.0
+    # duration defaults to one full tour of the circle
+    assert sc.duration_s == math.ceil(2 * math.pi * sc.robots.radius_m / sc.robots.speed_mps)
+    assert len(sc.world.room.wall_segments()) == 4
+
+
+def test_objects_are_typed(tmp_path):
+    sc = load_scenario(write(tmp_path, """
+world:
+  objects:
+    - {type: chair, center: [1, 2], yaw_deg: 10}
+    - {type: overturned_chair, center: [0, 0]}
+    - {type: box, center: [-1, 0], size_m: [0.4, 0.6]}
+"""))
+    chair, over, box = sc.world.objects
+    assert isinstance(chair, Chair) and chair.center == (1.0, 2.0) and chair.leg_spacing_m == 0.4
+    assert isinstance(over, OverturnedChair) and isinstance(box, Box) and box.size_m == (0.4, 0.6)
+    assert scenario_to_dict(sc)["world"]["objects"][0]["type"] == "chair"
+
+
+def test_room_from_wall_segments(tmp_path):
+    sc = load_scenario(write(tmp_path, "world: {room: {walls: [[0, 0, 4, 0], [4, 0, 4, 3]]}}\n"))
+    assert sc.world.room.wall_segments() == ((0.0, 0.0, 4.0, 0.0), (4.0, 0.0, 4.0, 3.0))
+    assert scenario_from_dict(scenario_to_dict(sc)) == sc
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("robots: {speed_mps: fast}", "scene.yaml: robots.speed_mps: expected a number > 0, got 'fast'"),
+    ("robots: {speed_mps: -1}", "scene.yaml: robots.speed_mps: expected a number > 0, got -1"),
+    ("robots: {sped_mps: 1}", "scene.yaml: robots.sped_mps: unknown key; expected one of names, radius_m"),
+    ("robot: {}", "scene.yaml: robot: unknown key; expected one of name, description"),
+    ("seed: true", "scene.yaml: seed: expected an integer >= 0, got True"),
+    ("laser: {dropout: 1.5}", "scene.yaml: laser.dropout: expected a number in [0, 1), got 1.5"),
+    ("laser: {fov_deg: 400}", "scene.yaml: laser.fov_deg: expected a number in (0, 360], got 400"),
+    ("laser: {beams: 66.5}", "scene.yaml: laser.beams: expected an integer >= 2, got 66.5"),
+    ("laser: {range_min_m: 6}", "scene.yaml: laser.range_min_m: expected a number < laser.range_max_m (5.6)"),
+    ("slam: {free_thresh: 0.7}", "scene.yaml: slam.free_thresh: expected a number < slam.occupied_thresh"),
+    ("slam: {drift: {xy: 1}}", "scene.yaml: slam.drift.xy: unknown key; expected one of xy_m_per_m"),
+    ("slam: {log_odds: {miss: 0.4}}", "scene.yaml: slam.log_odds.miss: expected a number < 0, got 0.4"),
+    ("world: {center: [1]}", "scene.yaml: world.center: expected a list [x, y] of two numbers, got [1]"),
+    ("world: {pillars: [{radius: 0.2}]}", "scene.yaml: world.pillars[0].center: missing required key"),
+    ("world: {objects: [{type: chair, center: [0, 0]}, {type: sofa, center: [1, 1]}]}",
+     "scene.yaml: world.objects[1].type: expected an object type, one of 'chair'"),
+    ("world: {objects: [{type: box, center: [0, 0], size_m: [0, 1]}]}",
+     "scene.yaml: world.objects[0].size_m[0]: expected a number > 0, got 0"),
+    ("world: {room: {walls: [[0, 0, 1]]}}", "scene.yaml: world.room.walls[0]: expected a wall [ax, ay, bx, by]"),
+    ("world: {room: {size_m: [4, 3], walls: [[0, 0, 1, 1]]}}",
+     "scene.yaml: world.room: expected either size_m (and center) or walls"),
+    ("robots: {start_angles_deg: [0, 120]}",
+     "scene.yaml: robots.start_angles_deg: expected a list of 3 numbers (one per robot), got [0.0, 120.0]"),
+    ("robots: {names: [A, A]}", "scene.yaml: robots.names: expected unique robot names"),
+    ("robots: {motion: wander}", "scene.yaml: robots.motion: expected one of 'online', 'offline', got 'wander'"),
+    ("center_error: {per_robot: {Bob: [0.1, 0]}}",
+     "scene.yaml: center_error.per_robot.Bob: expected a robot name (one of Lyon, Auckland, Nevers)"),
+    ("merger: {measure: sad}", "scene.yaml: merger.measure: expected one of 'similarity', 'birk_carpin', 'ncc'"),
+    ("network: {loss: 1}", "scene.yaml: network.loss: expected a number in [0, 1), got 1"),
+    ("output: {rrd: 3}", "scene.yaml: output.rrd: expected null or a path, got 3"),
+    ("- 1\n- 2\n", "scene.yaml: (top level): expected a mapping of scenario sections"),
+    ("robots: [1, 2]", "scene.yaml: robots: expected a mapping with keys names"),
+])
+def test_errors_name_file_key_and_expectation(tmp_path, text, expected):
+    assert error_of(tmp_path, text).startswith(expected)
+
+
+def test_invalid_yaml_and_missing_file(tmp_path):
+    assert error_of(tmp_path, "robots: {speed_mps: [1,\n").startswith("scene.yaml: invalid YAML at line")
+    with pytest.raises(ScenarioError, match=r"^nope.yaml: cannot read file"):
+        load_scenario(tmp_path / "nope.yaml")
+
+
+def test_overrides_revalidate_and_keep_defaults_derived(tmp_path):
+    sc = load_scenario(write(tmp_path, "robots: {radius_m: 1.5, speed_mps: 0.2}\n"))
+    fast = sc.with_overrides(["robots.speed_mps=0.5", "laser.fov_deg=360", "output.rrd=out/run.rrd",
+                              "center_error.per_robot.Lyon=[0.1, -0.05]"])
+    assert fast.robots.speed_mps == 0.5 and fast.laser.fov_deg == 360.0
+    assert fast.output.rrd == "out/run.rrd"
+    assert fast.center_error.per_robot == {"Lyon": (0.1, -0.05)}
+    assert fast.duration_s == math.ceil(2 * math.pi * 1.5 / 0.5)  # not given: follows the new speed
+    assert sc.robots.speed_mps == 0.2  # the original is unchanged
+    assert isinstance(fast, Scenario) and fast.source == "scene.yaml"
+
+
+@pytest.mark.parametrize("assignment, expected", [
+    ("robots.speed_mps=fast",
+     "scene.yaml (--set robots.speed_mps=fast): robots.speed_mps: expected a number > 0, got 'fast'"),
+    ("robots.sped=1", "scene.yaml (--set robots.sped=1): robots.sped: unknown key"),
+    ("robots.speed_mps", "scene.yaml: --set 'robots.speed_mps': expected key.path=value"),
+    ("seed.x=1", "scene.yaml: --set seed.x=1: seed: expected a mapping to set keys in, got 0"),
+])
+def test_override_errors_name_the_assignment(tmp_path, assignment, expected):
+    sc = load_scenario(write(tmp_path, "seed: 0\n"))
+    with pytest.raises(ScenarioError) as e:
+        sc.with_overrides(["laser.beams=100", assignment])
+    assert str(e.value).startswith(expected)
+
+
+def test_center_error_vectors_are_seeded():
+    sc = scenario_from_dict({"center_error": {"magnitude_m": 0.2, "per_robot": {"Nevers": [0.0, 0.1]}}})
+    a = sc.center_error.vectors(sc.robots.names, np.random.default_rng(5))
+    b = sc.center_error.vectors(sc.robots.names, np.random.default_rng(5))
+    assert a == b
+    assert math.isclose(math.hypot(*a["Lyon"]), 0.2) and math.isclose(math.hypot(*a["Auckland"]), 0.2)
+    assert a["Nevers"] == (0.0, 0.1)

@@ -92,8 +92,26 @@ class Network:
         self.delivered += len(out)
         return out
 
+    def inbox(self, recipient: str) -> Inbox:
+        """``recipient``'s inbox: ``network.inbox("Lyon").deliver(now)``."""
+        return Inbox(self, recipient)
+
     def pending(self, recipient: str | None = None) -> int:
         """Messages still in flight (to ``recipient``, or to anyone)."""
         if recipient is not None:
             return len(self._inbox.get(recipient, ()))
         return sum(len(q) for q in self._inbox.values())
+
+
+@dataclass(frozen=True, eq=False)
+class Inbox:
+    """One robot's view of the network: what has arrived for it."""
+
+    network: Network
+    recipient: str
+
+    def deliver(self, now: float) -> list[Message]:
+        return self.network.deliver(self.recipient, now)
+
+    def pending(self) -> int:
+        return self.network.pending(self.recipient)

@@ -298,6 +298,9 @@ def _build(data, source: str) -> Scenario:
     if slam.free_thresh >= slam.occupied_thresh:
         raise bad("slam.free_thresh", f"a number < slam.occupied_thresh ({slam.occupied_thresh:g})",
                   slam.free_thresh)
+    if slam.size_m <= 4 * robots.radius_m:  # the map is centred on the start pose, on the circle
+        raise bad("slam.size_m", f"a number > 4 * robots.radius_m ({4 * robots.radius_m:g}) so that the "
+                  "robot's circle fits in its map", slam.size_m)
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
     return Scenario(
         name=string(data.get("name", "scenario"), "name"),

@@ -31,6 +31,8 @@ def test_broadcast_skips_the_sender_and_inboxes_are_separate():
     assert sorted(m.recipient for m in msgs) == ["Auckland", "Nevers"]
     assert [m.sender for m in n.deliver("Auckland", 2.1)] == ["Lyon"]
     assert n.pending("Nevers") == 1 and n.deliver("Lyon", 99.0) == []
+    inbox = n.inbox("Nevers")
+    assert inbox.pending() == 1 and [m.payload for m in inbox.deliver(2.1)] == ["map"] and inbox.pending() == 0
 
 
 def test_loss_rate_is_respected():

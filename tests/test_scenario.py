@@ -123,6 +123,7 @@ def test_room_from_wall_segments(tmp_path):
     ("laser: {beams: 66.5}", "scene.yaml: laser.beams: expected an integer >= 2, got 66.5"),
     ("laser: {range_min_m: 6}", "scene.yaml: laser.range_min_m: expected a number < laser.range_max_m (5.6)"),
     ("slam: {free_thresh: 0.7}", "scene.yaml: slam.free_thresh: expected a number < slam.occupied_thresh"),
+    ("slam: {size_m: 6}", "scene.yaml: slam.size_m: expected a number > 4 * robots.radius_m (7) so that"),
     ("slam: {drift: {xy: 1}}", "scene.yaml: slam.drift.xy: unknown key; expected one of xy_m_per_m"),
     ("slam: {log_odds: {miss: 0.4}}", "scene.yaml: slam.log_odds.miss: expected a number < 0, got 0.4"),
     ("world: {center: [1]}", "scene.yaml: world.center: expected a list [x, y] of two numbers, got [1]"),

@@ -70,13 +70,19 @@ class TeamMerger:
         names = [self.self_name] + [n for n in self.team if n != self.self_name and n in self.maps]
         return [MapInput(n, self.maps[n].grid, self.maps[n].center) for n in names]
 
-    def update(self, msg: MapMessage, now: float | None = None) -> TeamMergeResult | None:
-        """Take a new map and run a merge cycle; returns the cycle (None if not ready or stale)."""
-        if not self.receive(msg) or not self.ready():
-            return None
+    def cycle(self, now: float | None = None) -> TeamMergeResult:
+        """Run a merge cycle over the held maps; keep its alignment if it is accepted."""
+        if not self.ready():
+            raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
         result = merge_team(self.inputs(), self.params)
         self.cycles += 1
         if result.accepted:
             self.current = result
-            self.current_stamp = msg.stamp if now is None else now
+            self.current_stamp = now
         return result
+
+    def update(self, msg: MapMessage, now: float | None = None) -> TeamMergeResult | None:
+        """Take a new map and run a merge cycle; returns the cycle (None if not ready or stale)."""
+        if not self.receive(msg) or not self.ready():
+            return None
+        return self.cycle(msg.stamp if now is None else now)

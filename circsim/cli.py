@@ -1,0 +1,183 @@
+"""Command line: ``circsim run | scenarios | view`` (and the experiment commands).
+
+A user's mistake (bad scenario, bad argument, missing file) prints one line ``circsim: error: ...``
+and exits with 2; whatever was already computed or recorded is kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .scenario import Scenario, ScenarioError, bundled_scenarios, load_scenario
+
+
+class UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def resolve_scenario(arg: str) -> Path:
+    """A scenario file path, or the name of a bundled scenario (``scene1``)."""
+    p = Path(arg)
+    if p.exists():
+        return p
+    bundled = bundled_scenarios()
+    if arg in bundled:
+        return bundled[arg]
+    raise UsageError(f"{arg}: no such scenario file (bundled scenarios: {', '.join(bundled)})")
+
+
+def load_with_overrides(arg: str, seed: int | None, sets: list[str]) -> Scenario:
+    sc = load_scenario(resolve_scenario(arg))
+    assignments = list(sets or [])
+    if seed is not None:
+        assignments.append(f"seed={seed}")
+    return sc.with_overrides(assignments) if assignments else sc
+
+
+def add_scenario_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", help="scenario YAML file or bundled scenario name (see `circsim scenarios`)")
+    p.add_argument("--seed", type=int, help="override the scenario's seed")
+    p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
+                   help="override a scenario value, e.g. --set center_error.magnitude_m=0.1 (repeatable)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="circsim", description="Simulation bench for multi-robot map merging with a common center.")
+    sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
+    r = sub.add_parser("run", help="run a scenario and print a summary")
+    add_scenario_args(r)
+    r.add_argument("--json", type=Path, metavar="OUT.json", help="write the run's metrics as JSON")
+    r.add_argument("--rrd", type=Path, metavar="RUN.rrd", help="record the run to a rerun file")
+    r.add_argument("--spawn", action="store_true", help="stream the run to a live rerun viewer")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    sub.add_parser("scenarios", help="list the bundled scenarios")
+    v = sub.add_parser("view", help="open a recorded run (.rrd) in the rerun viewer")
+    v.add_argument("rrd", type=Path)
+    v.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
+    for register in extra_commands():
+        register(sub)
+    return p
+
+
+def extra_commands():
+    """Experiment commands that live in their own modules (each module adds its subparser)."""
+    from . import experiments_cli
+
+    return experiments_cli.REGISTER
+
+
+def progress_observer(sc: Scenario, quiet: bool):
+    from .events import Observer
+
+    if quiet or not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    class Progress(Observer):
+        def __init__(self):
+            self.bar = tqdm(total=round(sc.duration_s, 1), unit="sim s", desc=sc.name, leave=False)
+
+        def on_tick(self, t, step, ticks):
+            self.bar.n = round(t, 1)
+            if step % 10 == 0:
+                self.bar.refresh()
+
+        def on_end(self, result):
+            self.bar.close()
+
+    return Progress()
+
+
+def summary(res) -> str:
+    d = res.to_dict()
+    lines = [f"scenario {d['scenario']}  seed {d['seed']}  simulated {d['sim_s']:.1f} s in {d['wall_s']:.1f} s "
+             f"(realtime factor {d['realtime_factor'] or float('inf'):.1f})"
+             + ("  [INTERRUPTED]" if d["interrupted"] else ""), "",
+             f"{'robot':<10} {'first merge s':>13} {'arc deg':>8} {'cycles':>7} {'accepted':>9} "
+             f"{'false':>6} {'rej.correct':>11}  final angle errors (deg)"]
+    for n, r in d["robots"].items():
+        fm = "—" if r["first_merge_s"] is None else f"{r['first_merge_s']:.1f}"
+        arc = "—" if r["first_merge_arc_deg"] is None else f"{r['first_merge_arc_deg']:.1f}"
+        errs = r["final_angle_error_deg"] or {}
+        e = ", ".join(f"{k} {v:.2f}" for k, v in errs.items() if k != n) or "—"
+        lines.append(f"{n:<10} {fm:>13} {arc:>8} {r['cycles']:>7} {r['accepted']:>9} {r['false_merges']:>6} "
+                     f"{r['rejected_correct']:>11}  {e}")
+    mc = d["merge_cycle_ms"]
+    lines += ["", f"false merges {d['false_merges']}   rejected correct {d['rejected_correct']}   "
+              + (f"merge cycle median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
+                 if mc["count"] else "no merge cycle")]
+    return "\n".join(lines)
+
+
+def cmd_run(args) -> int:
+    from .sim import Simulation
+
+    sc = load_with_overrides(args.scenario, args.seed, args.set)
+    rrd = args.rrd or (Path(sc.output.rrd) if sc.output.rrd else None)
+    json_out = args.json or (Path(sc.output.json) if sc.output.json else None)
+    observers = [o for o in [progress_observer(sc, args.quiet)] if o]
+    if rrd or args.spawn:
+        from .record import RerunRecorder
+
+        if rrd:
+            rrd.parent.mkdir(parents=True, exist_ok=True)
+        observers.append(RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn,
+                                       scan_log_hz=sc.output.scan_log_hz))
+    if json_out:
+        json_out.parent.mkdir(parents=True, exist_ok=True)
+    res = Simulation(sc, observers).run()
+    if rrd:
+        res.outputs["rrd"] = str(rrd)
+    if json_out:
+        res.outputs["json"] = str(json_out)
+        json_out.write_text(json.dumps(res.to_dict(), indent=2))
+    print(summary(res))
+    if rrd:
+        print(f"recording: {rrd}   (view it: circsim view {rrd})")
+    if json_out:
+        print(f"metrics:   {json_out}")
+    return 130 if res.interrupted else 0
+
+
+def cmd_scenarios(args) -> int:
+    for name, path in bundled_scenarios().items():
+        try:
+            sc = load_scenario(path)
+            print(f"{name:<16} {sc.description}")
+        except ScenarioError as e:
+            print(f"{name:<16} (invalid: {e})")
+    return 0
+
+
+def cmd_view(args) -> int:
+    from .record import view
+
+    return view(args.rrd, web=args.web)
+
+
+COMMANDS = {"run": cmd_run, "scenarios": cmd_scenarios, "view": cmd_view}
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        fn = COMMANDS.get(args.cmd) or args.func
+        return fn(args)
+    except (UsageError, ScenarioError, FileNotFoundError, ValueError) as e:
+        print(f"circsim: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("circsim: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

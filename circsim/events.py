@@ -1,0 +1,74 @@
+"""What a simulation run tells its observers (metrics, recording, progress).
+
+The simulation loop (:mod:`circsim.sim`) knows nothing of rerun or files: it calls these hooks on
+every observer it was given, in simulated-time order. Every hook has a no-op default, so an observer
+implements only what it needs (Gymnasium-style composition instead of flags inside the loop).
+
+Frames: world quantities are in the world frame W (metres, y up); a robot's map, SLAM pose and given
+center are in its own map frame M_i (its start pose in W), see DESIGN.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from merger.grid import OccupancyGrid
+from merger.team import TeamMergeResult
+
+
+@dataclass(frozen=True, eq=False)
+class RobotTick:
+    """One robot at one laser tick."""
+
+    name: str
+    true_pose: tuple[float, float, float]  # (x, y, yaw) in W
+    est_pose: tuple[float, float, float]  # SLAM estimate (x, y, yaw) in M_i
+    est_pose_world: tuple[float, float, float]  # the SLAM estimate drawn in W via the true start pose
+    arc_deg: float  # degrees travelled on the circle so far
+    scan: object  # circsim.laser.LaserScan
+
+
+@dataclass(frozen=True, eq=False)
+class MergeCycle:
+    """One merge cycle of one robot, judged against ground truth.
+
+    truth_deg : true rotation of every map onto the merging robot's frame (θ*_ij = yaw_j(0) − yaw_i(0)).
+    correct : for the accepted hypothesis (or, if none, the best one): every angle error ≤ tolerance.
+    angle_error_deg : per teammate, |wrap(θ − θ*)| of that hypothesis.
+    """
+
+    t: float
+    robot: str
+    trigger: str  # name of the robot whose new map triggered the cycle
+    result: TeamMergeResult
+    truth_deg: dict[str, float]
+    correct: bool
+    angle_error_deg: dict[str, float]
+    first_correct: bool  # this cycle is the robot's first accepted correct merge
+    false_merge: bool  # accepted but not correct
+
+
+class Observer:
+    """Base class of run observers; override the hooks you need."""
+
+    def on_start(self, sim) -> None:
+        """Called once before the first tick; ``sim`` exposes scenario, world, robots, truth."""
+
+    def on_tick(self, t: float, step: int, ticks: list[RobotTick]) -> None:
+        """Every laser tick (all robots)."""
+
+    def on_map_published(self, t: float, robot: str, grid: OccupancyGrid,
+                         center_given: tuple[float, float], center_true: tuple[float, float]) -> None:
+        """A robot published its SLAM map (its frame); ``center_given`` includes the injected error."""
+
+    def on_map_received(self, t: float, recipient: str, sender: str, sent_s: float) -> None:
+        """A teammate's map arrived over the network (delay = t − sent_s)."""
+
+    def on_merge_cycle(self, cycle: MergeCycle) -> None:
+        """A robot ran a merge cycle."""
+
+    def on_event(self, t: float, level: str, text: str) -> None:
+        """A human-readable event (level: "info", "warn", "error")."""
+
+    def on_end(self, result) -> None:
+        """The run finished (or was interrupted); ``result`` is the :class:`circsim.metrics.RunResult`."""

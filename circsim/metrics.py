@@ -1,0 +1,118 @@
+"""Metrics against ground truth, and the plain serializable record of a run (DESIGN.md, "Metrics").
+
+* ``first_merge_s[robot]`` — simulated seconds to that robot's first accepted, correct merge of all maps.
+* ``first_merge_arc_deg[robot]`` — degrees it had travelled on its circle by then.
+* ``false_merges`` — accepted alignments that are not correct (any angle error > ``correct_tol_deg``).
+* ``rejected_correct`` — merge cycles whose best hypothesis was correct but rejected.
+* ``merge_cycle_ms`` — wall time of one merge cycle (all orders + verification): median and p95.
+* ``realtime_factor`` — simulated seconds per wall second of the run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from merger.search import angle_diff_deg
+
+from .events import MergeCycle, Observer
+
+
+def judge(theta_deg: dict[str, float], truth_deg: dict[str, float], tol_deg: float):
+    """Angle errors per map and whether every one is within ``tol_deg``."""
+    errors = {k: abs(float(angle_diff_deg(theta_deg[k], truth_deg[k]))) for k in theta_deg}
+    return errors, all(e <= tol_deg for e in errors.values())
+
+
+@dataclass
+class RobotMetrics:
+    first_merge_s: float | None = None
+    first_merge_arc_deg: float | None = None
+    cycles: int = 0
+    accepted: int = 0
+    false_merges: int = 0
+    rejected_correct: int = 0
+    final_angle_error_deg: dict[str, float] | None = None  # of the alignment held at the end
+    maps_published: int = 0
+    maps_received: int = 0
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class RunResult:
+    """Everything a run measured; ``to_dict()`` is the metrics JSON (plain, serializable)."""
+
+    scenario: str
+    seed: int
+    params: dict
+    robots: dict[str, RobotMetrics]
+    cycle_ms: list[float] = field(default_factory=list)
+    sim_s: float = 0.0
+    wall_s: float = 0.0
+    interrupted: bool = False
+    outputs: dict = field(default_factory=dict)
+
+    @property
+    def false_merges(self) -> int:
+        return sum(r.false_merges for r in self.robots.values())
+
+    @property
+    def rejected_correct(self) -> int:
+        return sum(r.rejected_correct for r in self.robots.values())
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_s / self.wall_s if self.wall_s > 0 else math.inf
+
+    def merge_cycle_ms(self) -> dict:
+        if not self.cycle_ms:
+            return {"median": None, "p95": None, "count": 0}
+        a = np.asarray(self.cycle_ms)
+        return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)), "count": int(a.size)}
+
+    def all_merged(self) -> bool:
+        return all(r.first_merge_s is not None for r in self.robots.values())
+
+    def to_dict(self) -> dict:
+        return {
+            "scenario": self.scenario, "seed": self.seed, "params": self.params,
+            "robots": {n: r.to_dict() for n, r in self.robots.items()},
+            "false_merges": self.false_merges, "rejected_correct": self.rejected_correct,
+            "merge_cycle_ms": self.merge_cycle_ms(),
+            "realtime_factor": None if math.isinf(self.realtime_factor) else self.realtime_factor,
+            "sim_s": self.sim_s, "wall_s": self.wall_s, "interrupted": self.interrupted,
+            "all_merged": self.all_merged(), "outputs": self.outputs,
+        }
+
+
+class MetricsObserver(Observer):
+    """Accumulates :class:`RunResult` figures from the run's events."""
+
+    def __init__(self, result: RunResult, arc_of) -> None:
+        self.result = result
+        self._arc_of = arc_of  # (robot, t) -> degrees travelled
+
+    def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
+        self.result.robots[robot].maps_published += 1
+
+    def on_map_received(self, t, recipient, sender, sent_s) -> None:
+        self.result.robots[recipient].maps_received += 1
+
+    def on_merge_cycle(self, cycle: MergeCycle) -> None:
+        m = self.result.robots[cycle.robot]
+        m.cycles += 1
+        self.result.cycle_ms.append(cycle.result.wall_ms)
+        if cycle.result.accepted:
+            m.accepted += 1
+            m.final_angle_error_deg = dict(cycle.angle_error_deg)
+            if cycle.false_merge:
+                m.false_merges += 1
+            elif m.first_merge_s is None:
+                m.first_merge_s = cycle.t
+                m.first_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)
+        elif cycle.correct:
+            m.rejected_correct += 1

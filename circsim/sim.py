@@ -1,0 +1,189 @@
+"""The simulation loop: robots drive, scan, map, exchange maps and merge; observers watch.
+
+One tick every ``dt_s`` (the laser rate): every robot moves along its circle, scans (other robots are
+obstacles), integrates the scan into its SLAM grid; every ``slam.publish_period_s`` a robot publishes
+its map to itself (a new own map) and every ``network.period_s`` it sends its newest map to its
+teammates through the simulated network. Every tick, each robot that received any new map (its own or
+a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds; maps
+arriving in the same tick share one cycle. Each cycle is judged against ground truth.
+
+Randomness: one ``numpy.random.SeedSequence(seed)`` is split into independent streams per purpose
+and robot (laser noise, SLAM drift, network, center error, publish phases), so the same scenario and
+seed give the same run, and changing e.g. the network does not change the laser noise.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from merger.online import MapMessage, TeamMerger
+from merger.team import MergeParams
+
+from .events import MergeCycle, Observer, RobotTick
+from .laser import scan as laser_scan
+from .metrics import MetricsObserver, RobotMetrics, RunResult, judge
+from .motion import CircleTrajectory, trajectories
+from .network import Network
+from .scenario import Scenario, scenario_to_dict
+from .slam import Slam
+from .world import World
+
+
+@dataclass
+class Robot:
+    """A robot's parts: its trajectory, laser noise stream, SLAM, merger state and given center."""
+
+    name: str
+    traj: CircleTrajectory
+    slam: Slam
+    merger: TeamMerger
+    center_given: tuple[float, float]
+    center_true: tuple[float, float]
+    laser_rng: np.random.Generator
+    publish_phase_s: float
+    next_publish_s: float = 0.0
+    next_send_s: float = 0.0
+    first_correct: bool = False
+    inbox_new: list[str] = field(default_factory=list)
+
+
+def merge_params(sc: Scenario) -> MergeParams:
+    m = sc.merger
+    return MergeParams(roi_m=m.roi_m, measure=m.measure, method=m.method, verification=m.verification,
+                       nu_min=m.nu_min, min_support=m.min_support, score_min=m.score_min)
+
+
+def run_params(sc: Scenario) -> dict:
+    """The parameters a sweep varies, flattened for the run record."""
+    d = scenario_to_dict(sc)
+    return {"center_error": d["center_error"], "network": d["network"], "merger": d["merger"],
+            "duration_s": sc.duration_s, "dt_s": sc.dt_s, "motion": sc.robots.motion,
+            "speed_mps": sc.robots.speed_mps, "radius_m": sc.robots.radius_m,
+            "drift": d["slam"]["drift"], "laser_noise_std_m": sc.laser.noise_std_m}
+
+
+class Simulation:
+    """A run of one scenario. ``Simulation(sc, observers).run()`` returns the :class:`RunResult`."""
+
+    def __init__(self, scenario: Scenario, observers: list[Observer] = ()) -> None:
+        sc = self.scenario = scenario
+        self.seed = int(sc.seed)
+        self.robot_names = list(sc.robots.names)
+        ss = np.random.SeedSequence(self.seed)
+        streams = iter(ss.spawn(3 + 2 * len(self.robot_names)))
+        self.network = Network(sc.network, np.random.default_rng(next(streams)))
+        err_rng = np.random.default_rng(next(streams))
+        phase_rng = np.random.default_rng(next(streams))
+        self.world = World.from_scenario(sc)
+        self.center_world = tuple(map(float, sc.world.center))
+        self.circle_radius = float(sc.robots.radius_m)
+        trajs = trajectories(sc)
+        self.start_poses = {n: trajs[n].start_pose() for n in self.robot_names}
+        errors = sc.center_error.vectors(self.robot_names, err_rng)
+        params = merge_params(sc)
+        self.robots: dict[str, Robot] = {}
+        for n in self.robot_names:
+            slam = Slam(sc.slam, self.start_poses[n], np.random.default_rng(next(streams)))
+            c_true = tuple(float(v) for v in slam.true_to_map(np.array(self.center_world)))
+            c_given = (c_true[0] + errors[n][0], c_true[1] + errors[n][1])
+            phase = float(phase_rng.uniform(0.0, sc.slam.publish_period_s))
+            self.robots[n] = Robot(n, trajs[n], slam, TeamMerger(n, tuple(self.robot_names), params), c_given,
+                                   c_true, np.random.default_rng(next(streams)), phase,
+                                   next_publish_s=phase, next_send_s=phase)
+        self.centers_given = {n: r.center_given for n, r in self.robots.items()}
+        # θ*_ij = yaw_j(0) − yaw_i(0): rotation of map j onto map i
+        self.truth_deg = {i: {j: math.degrees(self.start_poses[j].yaw - self.start_poses[i].yaw) % 360.0
+                              for j in self.robot_names} for i in self.robot_names}
+        self.result = RunResult(sc.name, self.seed, run_params(sc),
+                                {n: RobotMetrics() for n in self.robot_names})
+        self.observers = [MetricsObserver(self.result, self.arc_deg), *observers]
+
+    def arc_deg(self, robot: str, t: float) -> float:
+        return self.robots[robot].traj.arc_travelled_deg(t)
+
+    def _emit(self, hook: str, *args) -> None:
+        for o in self.observers:
+            getattr(o, hook)(*args)
+
+    def pose(self, robot: Robot, t: float):
+        return robot.traj.pose_at(t) if self.scenario.robots.motion == "online" else robot.traj.start_pose()
+
+    def step(self, k: int, t: float) -> None:
+        sc = self.scenario
+        poses = {n: self.pose(r, t) for n, r in self.robots.items()}
+        for n, p in poses.items():
+            self.world.set_robot_pose(n, *p)
+        ticks = []
+        for n, r in self.robots.items():
+            s = laser_scan(self.world, n, poses[n], r.laser_rng, config=sc.laser, stamp=t)
+            est = r.slam.update(poses[n], s)
+            ticks.append(RobotTick(n, tuple(poses[n]), tuple(est), self._est_in_world(n, est),
+                                   r.traj.arc_travelled_deg(t), s))
+        self._emit("on_tick", t, k, ticks)
+        self._exchange(t)
+        for r in self.robots.values():
+            if r.inbox_new:
+                self._merge(r, t)
+
+    def _est_in_world(self, name: str, est) -> tuple[float, float, float]:
+        s = self.start_poses[name]
+        c, si = math.cos(s.yaw), math.sin(s.yaw)
+        return (s.x + c * est[0] - si * est[1], s.y + si * est[0] + c * est[1], s.yaw + est[2])
+
+    def _exchange(self, t: float) -> None:
+        eps = 1e-9
+        for n, r in self.robots.items():
+            if t + eps >= r.next_publish_s and r.slam.updates:
+                r.next_publish_s += self.scenario.slam.publish_period_s
+                msg = MapMessage(n, t, r.slam.grid(), r.center_given)
+                r.merger.receive(msg)
+                r.inbox_new.append(n)
+                self._emit("on_map_published", t, n, msg.grid, r.center_given, r.center_true)
+            if t + eps >= r.next_send_s and n in r.merger.maps:
+                r.next_send_s += self.scenario.network.period_s
+                self.network.broadcast(n, self.robot_names, r.merger.maps[n], t)
+        for n, r in self.robots.items():
+            for m in self.network.deliver(n, t + eps):
+                if r.merger.receive(m.payload):
+                    r.inbox_new.append(m.sender)
+                self._emit("on_map_received", t, n, m.sender, m.sent_s)
+
+    def _merge(self, r: Robot, t: float) -> None:
+        trigger = ",".join(dict.fromkeys(r.inbox_new))
+        r.inbox_new.clear()
+        if not r.merger.ready():
+            return
+        res = r.merger.cycle(now=t)
+        truth = {k: self.truth_deg[r.name][k] for k in r.merger.team if k in r.merger.maps}
+        errors, correct = judge(res.top.theta_deg, truth, self.scenario.merger.correct_tol_deg)
+        first = res.accepted and correct and not r.first_correct
+        r.first_correct |= first
+        self._emit("on_merge_cycle", MergeCycle(t, r.name, trigger, res, truth, correct, errors, first,
+                                                res.accepted and not correct))
+
+    def run(self) -> RunResult:
+        sc = self.scenario
+        n_steps = int(math.floor(sc.duration_s / sc.dt_s + 1e-9))
+        self._emit("on_start", self)
+        t0 = time.perf_counter()
+        try:
+            for k in range(n_steps + 1):
+                t = k * sc.dt_s
+                self.step(k, t)
+                self.result.sim_s = t
+        except KeyboardInterrupt:
+            self.result.interrupted = True
+            self._emit("on_event", self.result.sim_s, "warn", "run interrupted (Ctrl-C)")
+        finally:
+            self.result.wall_s = time.perf_counter() - t0
+        self._emit("on_end", self.result)
+        return self.result
+
+
+def run_scenario(scenario: Scenario, observers: list[Observer] = ()) -> RunResult:
+    """Run ``scenario`` with ``observers`` and return its result."""
+    return Simulation(scenario, observers).run()

@@ -2,8 +2,230 @@
 
 Each entry is a function ``register(subparsers)`` that adds one subparser and sets its handler with
 ``parser.set_defaults(func=handler)``; the handler takes the parsed args and returns an exit code.
+A user error raises ``ValueError`` (or a subclass) with a one-line message: ``circsim.cli.main``
+prints it and exits with 2.
 """
 
 from __future__ import annotations
 
-REGISTER: list = []
+import csv
+import json
+import sys
+from pathlib import Path
+
+
+def _scenario_args(p) -> None:
+    p.add_argument("--seed", type=int, help="base seed (default: the scenario's); seed i is base + i")
+    p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
+                   help="override a scenario value for every run (repeatable)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+# --- circsim offline ---------------------------------------------------------------------------------
+def register_offline(sub) -> None:
+    from .offline import NCC_SCORE_MIN, OTHERS
+
+    p = sub.add_parser("offline", help="the thesis's offline displacement experiment (figures 3.14/3.15)",
+                       description="Robots displaced to ±φ around their start points (1° steps); the maps at "
+                                   "every φ are merged offline with each method; prints the smallest φ of a "
+                                   "first valid and correct merge beside the thesis's figures.")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario file(s) or bundled name(s)")
+    p.add_argument("--methods", default="ncc,similarity", help="comma-separated: ncc, similarity")
+    p.add_argument("--seeds", type=int, default=1, help="number of seeds per scenario (default 1)")
+    p.add_argument("--max-deg", type=float, help="largest displacement φ (default: robots.offline.max_deg)")
+    p.add_argument("--step-deg", type=float, help="displacement step (default: robots.offline.step_deg)")
+    p.add_argument("--out", type=Path, help="write offline.csv, offline.json, records and first-merge overlays")
+    p.add_argument("--full", action="store_true", help="merge at every φ up to max-deg (do not stop a "
+                                                        "method at its first valid correct merge)")
+    p.add_argument("--score-min", type=float, default=NCC_SCORE_MIN,
+                   help=f"NCC acceptance threshold on every alignment's coefficient (default {NCC_SCORE_MIN})")
+    p.add_argument("--others", choices=OTHERS, default="lockstep",
+                   help="the other robots while one scans: displaced together (default), at start, absent")
+    p.add_argument("--scans-per-pose", type=int, default=5, help="laser scans integrated at each pose")
+    p.add_argument("--search-method", help="rotation search (default: fast if available, else reference)")
+    p.add_argument("--save-maps", action="store_true", help="also save every robot's map at every φ as ROS "
+                                                             "map files under OUT/maps/")
+    p.add_argument("--calibrate", action="store_true",
+                   help="instead: measure the NCC scores of wrong hypotheses over every φ and propose "
+                        "--score-min (use seeds that the reported experiment does not use)")
+    _scenario_args(p)
+    p.set_defaults(func=cmd_offline)
+
+
+def cmd_offline(args) -> int:
+    from .cli import load_with_overrides
+    from .offline import OfflineSettings
+
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    if args.seeds < 1:
+        raise ValueError(f"--seeds: expected an integer >= 1, got {args.seeds}")
+    settings = OfflineSettings(methods=methods, max_deg=args.max_deg, step_deg=args.step_deg,
+                               scans_per_pose=args.scans_per_pose, others=args.others,
+                               ncc_score_min=args.score_min, search_method=args.search_method, full=args.full)
+    bases = [load_with_overrides(s, args.seed, args.set) for s in args.scenarios]
+    scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
+    if args.calibrate:
+        return _calibrate(scenarios, settings, args)
+    return _offline(scenarios, settings, args)
+
+
+def _offline(scenarios, settings, args) -> int:
+    from tqdm import tqdm
+
+    from merger.mapio import save_map, save_overlay
+
+    from .offline import default_search_method, format_table, run_offline, summarize
+
+    search = settings.search_method or default_search_method()
+    out: Path | None = args.out
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+    seed_results, records_path = [], (out / "offline_records.jsonl") if out else None
+    rec_file = open(records_path, "w") if records_path else None
+    bar = tqdm(total=len(scenarios), unit="scene·seed", disable=args.quiet, desc="offline")
+    interrupted = False
+    try:
+        for sc in scenarios:
+            def on_record(rec, sc=sc):
+                bar.set_postfix_str(f"{sc.name} seed {sc.seed} {rec.method} φ={rec.phi_deg:g}")
+                if rec_file:
+                    rec_file.write(json.dumps(rec.to_dict()) + "\n")
+                    rec_file.flush()
+
+            def on_maps(phi, grids, sc=sc):
+                if out and args.save_maps:
+                    for name, g in grids.items():
+                        save_map(g, out / "maps" / sc.name / f"seed{sc.seed}" / f"phi{phi:03g}" / f"{name}.yaml")
+
+            results, _ = run_offline(sc, settings, on_record=on_record, on_maps=on_maps)
+            for r in results.values():
+                seed_results.append(r)
+                if out and r.first_merge is not None:
+                    fm = r.first_merge
+                    save_overlay([fm.layers[n] for n in fm.layers], list(fm.layers),
+                                 out / f"first_valid_{r.scene}_{r.method}_seed{r.seed}.png")
+            bar.update(1)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+        if rec_file:
+            rec_file.close()
+    rows = summarize(seed_results)
+    print(f"offline displacement experiment: smallest ±φ with a first valid and correct merge "
+          f"(search {search}, NCC score_min {settings.ncc_score_min:g}, others {settings.others}, "
+          f"{settings.scans_per_pose} scans/pose{', full range' if settings.full else ''})")
+    print(format_table(rows))
+    if out:
+        _write_offline(out, rows, seed_results, settings, search, args)
+        print(f"written: {out / 'offline.csv'}, {out / 'offline_seeds.csv'}, {out / 'offline.json'}, "
+              f"{records_path}")
+    if interrupted:
+        print("circsim: interrupted; the table holds the scenes and seeds that finished", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _write_offline(out: Path, rows, seed_results, settings, search, args) -> None:
+    from dataclasses import asdict
+
+    flat = [{k: (json.dumps(v) if isinstance(v, list) else v) for k, v in r.items()} for r in rows]
+    _write_csv(out / "offline.csv", flat)
+    _write_csv(out / "offline_seeds.csv", [r.to_dict() for r in seed_results])
+    meta = {"command": "circsim " + " ".join(sys.argv[1:]) if sys.argv else "", "settings": asdict(settings),
+            "search_method": search, "scenarios": args.scenarios, "seeds": args.seeds, "set": args.set}
+    (out / "offline.json").write_text(json.dumps(
+        {"meta": meta, "summary": rows, "per_seed": [r.to_dict() for r in seed_results]}, indent=2))
+
+
+def _calibrate(scenarios, settings, args) -> int:
+    from tqdm import tqdm
+
+    from .offline import calibrated_threshold, ncc_wrong_scores
+
+    rows = []
+    for sc in tqdm(scenarios, unit="scene·seed", disable=args.quiet, desc="calibrate"):
+        rows += ncc_wrong_scores(sc, settings)
+    cal = calibrated_threshold(rows)
+    print(f"NCC calibration over {len(scenarios)} scene·seeds, {len(rows)} order hypotheses: "
+          f"{cal['wrong']} wrong (max min-score {cal['max_wrong_score']:.3f}), {cal['correct']} correct; "
+          f"proposed --score-min {cal['threshold']:g} ({cal['correct_above']} correct hypotheses pass it)")
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "ncc_calibration.json").write_text(json.dumps({"calibration": cal, "hypotheses": rows}))
+    return 0
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    if not rows:
+        path.write_text("")
+        return
+    cols = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        w.writerows(rows)
+
+
+# --- circsim sweep -----------------------------------------------------------------------------------
+def register_sweep(sub) -> None:
+    p = sub.add_parser("sweep", help="run every grid combination × seed; one tidy table and plots",
+                       description="Every combination of --grid values × --seeds is one run (seed = base + i). "
+                                   "Rows go to OUT/runs.jsonl as runs finish, then runs.csv, runs.parquet, "
+                                   "summary.csv and sweep.png.")
+    p.add_argument("scenario", help="scenario file or bundled name")
+    p.add_argument("--grid", action="append", default=[], metavar="KEY.PATH=V1,V2,...",
+                   help="a swept scenario key and its values, e.g. center_error=0,0.1,0.2 "
+                        "(alias of center_error.magnitude_m) or network.latency_s=0,1,3 (repeatable)")
+    p.add_argument("--seeds", type=int, default=5, help="seeds per combination (default 5)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    p.add_argument("--dask", metavar="ADDRESS", help="run on an existing dask.distributed scheduler instead")
+    p.add_argument("--resume", action="store_true", help="skip the runs already in OUT/runs.jsonl")
+    p.add_argument("--overwrite", action="store_true", help="discard OUT/runs.jsonl and start again")
+    p.add_argument("--no-plots", action="store_true", help="tables only")
+    _scenario_args(p)
+    p.set_defaults(func=cmd_sweep)
+
+
+def cmd_sweep(args) -> int:
+    from .cli import load_with_overrides
+    from .sweep import (SweepError, execute, format_summary, parse_grid, plan, prepare_out, summarize,
+                        sweep_rows, write_tables)
+
+    if args.workers is not None and args.workers < 1:
+        raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
+    base = load_with_overrides(args.scenario, args.seed, args.set)
+    axes = parse_grid(args.grid)
+    tasks = plan(base, axes, args.seeds)
+    todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
+    if base.merger.method == "reference" and todo and not args.quiet:
+        print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "
+              "--set merger.method=fast is ~100x faster", file=sys.stderr)
+    where = f"dask {args.dask}" if args.dask else f"{args.workers or 'all'} local workers"
+    print(f"sweep {base.name}: {len(tasks)} runs ({len(tasks) // args.seeds} combinations × {args.seeds} seeds), "
+          f"{done} already done, {len(todo)} to run on {where}", file=sys.stderr)
+    interrupted = False
+    try:
+        execute(todo, args.out, workers=args.workers, dask_address=args.dask, progress=not args.quiet)
+    except KeyboardInterrupt:
+        interrupted = True
+    rows = sweep_rows(args.out, tasks)
+    summary = summarize(rows, axes)
+    if rows:
+        paths = write_tables(rows, summary, args.out)
+        if not args.no_plots:
+            from .sweep_plot import plot_sweep
+
+            line_keys = [a.key for a in axes if a.key != "center_error.magnitude_m"]
+            paths.append(plot_sweep(rows, line_keys, args.out / "sweep.png", title=f"sweep {base.name}"))
+        print(format_summary(summary, axes))
+        print("written: " + ", ".join(str(p) for p in [args.out / "runs.jsonl", *paths]))
+    if interrupted:
+        print(f"circsim: interrupted; {len(rows)} of {len(tasks)} runs are in {args.out / 'runs.jsonl'} "
+              "(--resume continues)", file=sys.stderr)
+        return 130
+    return 0
+
+
+REGISTER: list = [register_offline, register_sweep]

@@ -1,0 +1,338 @@
+"""Parameter sweeps: every combination of grid values × every seed is one run; one tidy row per run.
+
+A sweep is planned first (:func:`plan`): the grid (``--grid key=v1,v2,...``, values parsed as YAML) is
+expanded, every combination's scenario is built and validated before anything runs, so a bad key or
+value is one line naming it. Runs are independent and deterministic per seed (seed = base seed + i);
+each is a plain picklable :class:`RunTask` executed by :func:`run_one` — in a local process pool
+(:func:`execute`, default all cores) or on an existing dask.distributed cluster. Rows are appended to
+``runs.jsonl`` as each run finishes, so an interrupted sweep keeps every finished row, and a resumed
+sweep skips the runs whose key (scenario, grid values, seed) is already there. At the end the rows are
+written as ``runs.csv`` (and ``runs.parquet`` with pyarrow), ``summary.csv`` and plots.
+
+Row columns (DESIGN.md metric names, flattened): ``scenario``, ``seed``, every grid key, the
+scenario's ``center_error.magnitude_m`` and ``network.latency_s``, ``first_merge_s.<robot>``,
+``first_merge_arc_deg.<robot>``, ``first_merge_s.mean`` / ``first_merge_arc_deg.mean`` (over the
+robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
+``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
+cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
+``wall_s``, ``duration_s``, ``run_key``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import os
+import statistics
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from .scenario import Scenario, ScenarioError, scenario_from_dict
+
+# DESIGN.md and the issue spell some keys without their unit; the scenario keys carry it.
+ALIASES = {"center_error": "center_error.magnitude_m", "network.latency": "network.latency_s",
+           "network.jitter": "network.jitter_s", "network.period": "network.period_s",
+           "latency": "network.latency_s"}
+RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV = "runs.jsonl", "runs.csv", "runs.parquet", "summary.csv"
+
+
+class SweepError(ValueError):
+    """A user error in a sweep's grid or output directory (one line)."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    key: str  # canonical scenario key path
+    values: tuple
+    texts: tuple = ()  # the values as the user wrote them (for messages)
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """Everything a worker needs to run one (combination, seed): plain data, picklable."""
+
+    raw: dict  # the base scenario as data (with --set applied)
+    source: str
+    grid: tuple[tuple[str, object], ...]  # (key, value) per axis
+    seed: int
+    key: str
+
+    def assignments(self) -> list[str]:
+        return [f"{k}={json.dumps(v)}" for k, v in self.grid] + [f"seed={self.seed}"]
+
+    def scenario(self) -> Scenario:
+        return scenario_from_dict(self.raw, source=self.source).with_overrides(self.assignments())
+
+
+def _norm(v):
+    """Numbers as floats so that 0 and 0.0 are the same grid value (and the same run key)."""
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else v
+
+
+def parse_grid(specs: Iterable[str]) -> list[Axis]:
+    """``["center_error=0,0.1", "network.latency_s=0,1"]`` → axes (key aliases resolved)."""
+    import yaml
+
+    axes: list[Axis] = []
+    for spec in specs:
+        key, sep, text = spec.partition("=")
+        key = key.strip()
+        if not sep or not key or not text.strip():
+            raise SweepError(f"--grid {spec!r}: expected KEY.PATH=V1,V2,... (e.g. center_error=0,0.1,0.2)")
+        key = ALIASES.get(key, key)
+        values, texts = [], []
+        for item in text.split(","):
+            texts.append(item.strip())
+            try:
+                v = yaml.safe_load(item)
+            except yaml.YAMLError:
+                raise SweepError(f"--grid {key}: value {item!r} is not valid YAML") from None
+            if v is None:
+                raise SweepError(f"--grid {key}: empty value in {text!r}; expected V1,V2,...")
+            values.append(_norm(v))
+        if len(set(map(json.dumps, values))) != len(values):
+            raise SweepError(f"--grid {key}: repeated value in {text!r}")
+        if any(a.key == key for a in axes):
+            raise SweepError(f"--grid {key}: given twice; put all its values in one --grid")
+        axes.append(Axis(key, tuple(values), tuple(texts)))
+    return axes
+
+
+def _check(base: Scenario, combo, label: str) -> None:
+    try:
+        base.with_overrides([f"{k}={json.dumps(v)}" for k, v in combo])
+    except ScenarioError as e:
+        msg = str(e).split("): ", 1)[-1]  # "<file> (--set k=v): path: expectation" → "path: expectation"
+        raise SweepError(f"{base.source}: {label}: {msg}") from None
+
+
+def run_key(scenario: str, grid, seed: int) -> str:
+    return json.dumps({"scenario": scenario, "grid": {k: _norm(v) for k, v in grid}, "seed": int(seed)},
+                      sort_keys=True)
+
+
+def plan(base: Scenario, axes: list[Axis], seeds: int) -> list[RunTask]:
+    """Every (combination, seed) as a task; builds every combination's scenario first (validation)."""
+    if seeds < 1:
+        raise SweepError(f"--seeds: expected an integer >= 1, got {seeds}")
+    for a in axes:  # one key at a time first: the message names the culprit key and value
+        for v, text in zip(a.values, a.texts, strict=True):
+            _check(base, [(a.key, v)], f"--grid {a.key}={text}")
+    combos = list(itertools.product(*[[(a.key, v) for v in a.values] for a in axes]))
+    for combo in combos:  # then every combination (keys that constrain each other)
+        _check(base, combo, "--grid " + " ".join(f"{k}={json.dumps(v)}" for k, v in combo))
+    base_seed = int(base.seed)
+    return [RunTask(base.raw, base.source, combo, base_seed + i, run_key(base.name, combo, base_seed + i))
+            for combo in combos for i in range(seeds)]
+
+
+# --- one run ---------------------------------------------------------------------------------------
+def run_one(task: RunTask) -> dict:
+    """Run one task and return its flat row (called in a worker process or a dask worker)."""
+    from .sim import run_scenario
+
+    sc = task.scenario()
+    return flatten(run_scenario(sc).to_dict(), task, sc)
+
+
+def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
+    """The tidy row of one run record (:meth:`circsim.metrics.RunResult.to_dict`)."""
+    row = {"scenario": rec["scenario"], "seed": rec["seed"]}
+    row.update({k: v for k, v in task.grid})
+    row["center_error.magnitude_m"] = sc.center_error.magnitude_m
+    row["network.latency_s"] = sc.network.latency_s
+    robots = rec["robots"]
+    for name, r in robots.items():
+        row[f"first_merge_s.{name}"] = r["first_merge_s"]
+        row[f"first_merge_arc_deg.{name}"] = r["first_merge_arc_deg"]
+    merged = [r for r in robots.values() if r["first_merge_s"] is not None]
+    row["robots_merged"] = len(merged)
+    row["first_merge_s.mean"] = statistics.fmean(r["first_merge_s"] for r in merged) if merged else None
+    row["first_merge_arc_deg.mean"] = (statistics.fmean(r["first_merge_arc_deg"] for r in merged)
+                                       if merged else None)
+    row["first_merge_s.max"] = max(r["first_merge_s"] for r in merged) if len(merged) == len(robots) else None
+    row["all_merged"] = rec["all_merged"]
+    cycles = sum(r["cycles"] for r in robots.values())
+    row.update(false_merges=rec["false_merges"], rejected_correct=rec["rejected_correct"], cycles=cycles,
+               rejected_correct_rate=rec["rejected_correct"] / cycles if cycles else None)
+    row["merge_cycle_ms.median"] = rec["merge_cycle_ms"]["median"]
+    row["merge_cycle_ms.p95"] = rec["merge_cycle_ms"]["p95"]
+    row.update(realtime_factor=rec["realtime_factor"], sim_s=rec["sim_s"], wall_s=rec["wall_s"],
+               duration_s=sc.duration_s, interrupted=rec["interrupted"], run_key=task.key)
+    return row
+
+
+# --- the row store ---------------------------------------------------------------------------------
+def read_rows(path: Path) -> list[dict]:
+    """Rows of a runs.jsonl; a torn last line (killed while writing) is ignored."""
+    rows = []
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: bool) -> tuple[list[RunTask], int]:
+    """The tasks still to run, and how many were already done (``--resume``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / RUNS_JSONL
+    done = {r.get("run_key") for r in read_rows(path)}
+    if done and not resume and not overwrite:
+        raise SweepError(f"{path} already holds {len(done)} runs; pass --resume to continue that sweep "
+                         "or --overwrite to start again")
+    if overwrite and not resume:
+        path.write_text("")
+        done = set()
+    todo = [t for t in tasks if t.key not in done]
+    return todo, len(tasks) - len(todo)
+
+
+# --- execution -------------------------------------------------------------------------------------
+def _init_worker() -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it stops the pool)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)  # one run per core: no nested thread pools
+    except Exception:  # pragma: no cover - OpenCV is a dependency, but threads are an optimisation
+        pass
+
+
+def _local(tasks: list[RunTask], workers: int):
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = multiprocessing.get_context("spawn")  # no fork of a parent holding threads (tqdm, OpenCV)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
+    futures = [pool.submit(run_one, t) for t in tasks]
+    try:
+        for f in as_completed(futures):
+            yield f.result()
+    except BaseException:  # Ctrl-C or a failed run: stop now, the finished rows are already written
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            p.terminate()
+        raise
+    pool.shutdown()
+
+
+def _dask(tasks: list[RunTask], address: str):
+    from distributed import Client, as_completed
+
+    with Client(address) as client:
+        futures = [client.submit(run_one, t, pure=False) for t in tasks]
+        try:
+            for f in as_completed(futures):
+                yield f.result()
+        except BaseException:
+            client.cancel(futures)
+            raise
+
+
+def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask_address: str | None = None,
+            progress: bool = True, on_row: Callable[[dict], None] | None = None) -> int:
+    """Run ``tasks``, appending each finished row to ``out/runs.jsonl``; returns the rows written.
+
+    An interrupted run (Ctrl-C reached the worker) is not written, so ``--resume`` runs it again.
+    """
+    from tqdm import tqdm
+
+    if not tasks:
+        return 0
+    workers = workers or os.cpu_count() or 1
+    rows = _dask(tasks, dask_address) if dask_address else _local(tasks, min(workers, len(tasks)))
+    written = 0
+    with open(out / RUNS_JSONL, "a") as f, tqdm(total=len(tasks), unit="run", desc="sweep",
+                                                   disable=not progress, smoothing=0.1) as bar:
+        for row in rows:
+            if not row.get("interrupted"):
+                f.write(json.dumps(row) + "\n")
+                f.flush()
+                written += 1
+                if on_row:
+                    on_row(row)
+            bar.update(1)
+    return written
+
+
+# --- tables ----------------------------------------------------------------------------------------
+def sweep_rows(out: Path, tasks: list[RunTask]) -> list[dict]:
+    """The rows of this sweep's tasks from the JSONL, in plan order (grid order, then seed)."""
+    by_key = {r["run_key"]: r for r in read_rows(out / RUNS_JSONL) if "run_key" in r}
+    return [by_key[t.key] for t in tasks if t.key in by_key]
+
+
+def _quantiles(xs: list[float]) -> tuple[float, float, float] | tuple[None, None, None]:
+    xs = sorted(x for x in xs if x is not None)
+    if not xs:
+        return None, None, None
+    if len(xs) == 1:
+        return xs[0], xs[0], xs[0]
+    q = statistics.quantiles(xs, n=4, method="inclusive")
+    return q[0], statistics.median(xs), q[2]
+
+
+def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
+    """One line per grid combination: medians and IQRs over seeds."""
+    keys = [a.key for a in axes]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(json.dumps(r.get(k)) for k in keys), []).append(r)
+    out = []
+    for g, rs in groups.items():
+        s = {k: json.loads(v) for k, v in zip(keys, g, strict=True)}
+        s["runs"] = len(rs)
+        s["all_merged_frac"] = sum(bool(r["all_merged"]) for r in rs) / len(rs)
+        for m in ("first_merge_s.mean", "first_merge_arc_deg.mean", "rejected_correct_rate",
+                  "merge_cycle_ms.median", "realtime_factor"):
+            q1, med, q3 = _quantiles([r[m] for r in rs])
+            s[f"{m}.median"], s[f"{m}.q1"], s[f"{m}.q3"] = med, q1, q3
+        s["false_merges.total"] = sum(r["false_merges"] for r in rs)
+        s["runs_with_false_merge"] = sum(r["false_merges"] > 0 for r in rs)
+        out.append(s)
+    return out
+
+
+def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]:
+    import pandas as pd
+
+    paths = [out / RUNS_CSV, out / SUMMARY_CSV]
+    df = pd.DataFrame(rows)
+    df.to_csv(paths[0], index=False)
+    pd.DataFrame(summary).to_csv(paths[1], index=False)
+    try:
+        import pyarrow  # noqa: F401
+
+        df.to_parquet(out / RUNS_PARQUET, index=False)
+        paths.append(out / RUNS_PARQUET)
+    except ImportError:
+        pass
+    return paths
+
+
+def format_summary(summary: list[dict], axes: list[Axis]) -> str:
+    def f(v, fmt="{:.1f}"):
+        return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.format(v)
+
+    keys = [a.key for a in axes]
+    head = "  ".join(f"{k:>24}" for k in keys) + (
+        f"  {'runs':>4} {'merged':>6} {'first merge s':>17} {'arc deg':>17} {'false':>5} "
+        f"{'rej.corr. rate':>17} {'cycle ms':>8}")
+    lines = [head]
+    for s in summary:
+        def iqr(m, fmt="{:.1f}"):
+            return f"{f(s[m + '.median'], fmt)} [{f(s[m + '.q1'], fmt)}–{f(s[m + '.q3'], fmt)}]"
+        lines.append("  ".join(f"{json.dumps(s[k]):>24}" for k in keys) + (
+            f"  {s['runs']:>4} {s['all_merged_frac']:>6.0%} {iqr('first_merge_s.mean'):>17} "
+            f"{iqr('first_merge_arc_deg.mean'):>17} {s['false_merges.total']:>5} "
+            f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8}"))
+    return "\n".join(lines)

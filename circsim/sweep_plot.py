@@ -1,0 +1,70 @@
+"""Plots of a sweep's rows (matplotlib, Agg): metrics vs center error, one line per other setting.
+
+Each panel shows, per x value, the median over seeds and the interquartile band. Runs in which no
+robot merged have no first-merge figures; the "all robots merged" panel shows how many did.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+PANELS = (
+    ("first_merge_s.mean", "first correct merge [s] (mean over robots)"),
+    ("first_merge_arc_deg.mean", "arc travelled at first correct merge [°]"),
+    ("all_merged", "runs with every robot merged [fraction]"),
+    ("false_merges", "false merges per run"),
+    ("rejected_correct_rate", "rejected-correct rate (per merge cycle)"),
+    ("merge_cycle_ms.median", "merge cycle wall time, median [ms]"),
+)
+X_KEY = "center_error.magnitude_m"
+
+
+def _band(values):
+    import numpy as np
+
+    v = np.array([float(x) for x in values if x is not None], dtype=float)
+    if v.size == 0:
+        return None
+    return np.percentile(v, 25), np.median(v), np.percentile(v, 75)
+
+
+def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str = "") -> Path:
+    """A 2×3 figure of :data:`PANELS` vs center error; lines by the values of ``line_keys``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xs = sorted({r[X_KEY] for r in rows})
+    lines: dict[str, list[dict]] = {}
+    for r in rows:
+        label = ", ".join(f"{k}={json.dumps(r.get(k))}" for k in line_keys) or "all runs"
+        lines.setdefault(label, []).append(r)
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8.5), constrained_layout=True)
+    for ax, (metric, ylabel) in zip(axes.flat, PANELS, strict=True):
+        for k, (label, rs) in enumerate(sorted(lines.items())):
+            pts = []
+            for x in xs:
+                b = _band([float(r[metric]) if r[metric] is not None else None for r in rs if r[X_KEY] == x])
+                if b is not None:
+                    pts.append((x, *b))
+            if not pts:
+                continue
+            x, lo, med, hi = zip(*pts, strict=True)
+            colour = f"C{k % 10}"
+            ax.plot(x, med, "o-", color=colour, label=label)
+            ax.fill_between(x, lo, hi, color=colour, alpha=0.2, linewidth=0)
+        ax.set_xlabel("center error [m]")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    handles, labels = next(((h, lab) for h, lab in (ax.get_legend_handles_labels() for ax in axes.flat) if h),
+                           ([], []))
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4), fontsize=9)
+    seeds = len({r["seed"] for r in rows})
+    fig.suptitle(f"{title}  (median and IQR over {seeds} seeds)".strip())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

@@ -41,6 +41,8 @@ def register_offline(sub) -> None:
                    help=f"NCC acceptance threshold on every alignment's coefficient (default {NCC_SCORE_MIN})")
     p.add_argument("--others", choices=OTHERS, default="lockstep",
                    help="the other robots while one scans: displaced together (default), at start, absent")
+    p.add_argument("--drift", choices=("arc", "path"), default="arc",
+                   help="SLAM drift along the arc (re-localizing, default) or along the whole back-and-forth path")
     p.add_argument("--scans-per-pose", type=int, default=5, help="laser scans integrated at each pose")
     p.add_argument("--search-method", help="rotation search (default: fast if available, else reference)")
     p.add_argument("--save-maps", action="store_true", help="also save every robot's map at every φ as ROS "
@@ -60,7 +62,7 @@ def cmd_offline(args) -> int:
     if args.seeds < 1:
         raise ValueError(f"--seeds: expected an integer >= 1, got {args.seeds}")
     settings = OfflineSettings(methods=methods, max_deg=args.max_deg, step_deg=args.step_deg,
-                               scans_per_pose=args.scans_per_pose, others=args.others,
+                               scans_per_pose=args.scans_per_pose, others=args.others, drift=args.drift,
                                ncc_score_min=args.score_min, search_method=args.search_method, full=args.full)
     bases = [load_with_overrides(s, args.seed, args.set) for s in args.scenarios]
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
@@ -95,7 +97,7 @@ def _offline(scenarios, settings, args) -> int:
             def on_maps(phi, grids, sc=sc):
                 if out and args.save_maps:
                     for name, g in grids.items():
-                        save_map(g, out / "maps" / sc.name / f"seed{sc.seed}" / f"phi{phi:03g}" / f"{name}.yaml")
+                        save_map(g, out / "maps" / sc.name / f"seed{sc.seed}" / f"phi{phi:g}" / f"{name}.yaml")
 
             results, _ = run_offline(sc, settings, on_record=on_record, on_maps=on_maps)
             for r in results.values():
@@ -113,7 +115,7 @@ def _offline(scenarios, settings, args) -> int:
             rec_file.close()
     rows = summarize(seed_results)
     print(f"offline displacement experiment: smallest ±φ with a first valid and correct merge "
-          f"(search {search}, NCC score_min {settings.ncc_score_min:g}, others {settings.others}, "
+          f"(search {search}, NCC score_min {settings.ncc_score_min:g}, others {settings.others}, drift {settings.drift}, "
           f"{settings.scans_per_pose} scans/pose{', full range' if settings.full else ''})")
     print(format_table(rows))
     if out:
@@ -141,15 +143,16 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
 def _calibrate(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
-    from .offline import calibrated_threshold, ncc_wrong_scores
+    from .offline import calibrated_threshold, ncc_calibration_rows
 
     rows = []
     for sc in tqdm(scenarios, unit="scene·seed", disable=args.quiet, desc="calibrate"):
-        rows += ncc_wrong_scores(sc, settings)
+        rows += ncc_calibration_rows(sc, settings)
     cal = calibrated_threshold(rows)
-    print(f"NCC calibration over {len(scenarios)} scene·seeds, {len(rows)} order hypotheses: "
-          f"{cal['wrong']} wrong (max min-score {cal['max_wrong_score']:.3f}), {cal['correct']} correct; "
-          f"proposed --score-min {cal['threshold']:g} ({cal['correct_above']} correct hypotheses pass it)")
+    print(f"NCC calibration over {len(scenarios)} scene·seeds, {cal['alignments']} alignments "
+          f"({cal['wrong_best']} with a wrong best angle): highest score of a wrong rotation "
+          f"{cal['max_wrong_angle_score']:.3f}; proposed --score-min {cal['threshold']:g} "
+          f"({cal['correct_at_or_above']} of {cal['correct_best']} right alignments reach it)")
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "ncc_calibration.json").write_text(json.dumps({"calibration": cal, "hypotheses": rows}))

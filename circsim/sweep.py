@@ -249,6 +249,7 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
     if not tasks:
         return 0
     workers = workers or os.cpu_count() or 1
+    _end_line(out / RUNS_JSONL)
     rows = _dask(tasks, dask_address) if dask_address else _local(tasks, min(workers, len(tasks)))
     written = 0
     with open(out / RUNS_JSONL, "a") as f, tqdm(total=len(tasks), unit="run", desc="sweep",
@@ -262,6 +263,15 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
                     on_row(row)
             bar.update(1)
     return written
+
+
+def _end_line(path: Path) -> None:
+    """Terminate a torn last line (a sweep killed while writing) so that new rows start on their own."""
+    if path.exists() and path.stat().st_size:
+        with open(path, "rb+") as f:
+            f.seek(-1, os.SEEK_END)
+            if f.read(1) != b"\n":
+                f.write(b"\n")
 
 
 # --- tables ----------------------------------------------------------------------------------------

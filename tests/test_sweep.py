@@ -1,0 +1,105 @@
+"""Sweeps: grid parsing and validation, process pool vs dask, resume, tidy rows (circsim.sweep)."""
+
+import json
+
+import pytest
+
+from circsim.cli import main
+from circsim.offline import default_search_method
+from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.sweep import RUNS_JSONL, SweepError, execute, parse_grid, plan, prepare_out, read_rows, sweep_rows
+
+# short runs with a small ROI: the machinery is under test here, not the merger
+SETS = [f"merger.method={default_search_method()}", "merger.roi_m=3", "duration_s=3"]
+TIMING = ("wall_s", "realtime_factor", "merge_cycle_ms.median", "merge_cycle_ms.p95")
+
+
+def base():
+    return load_scenario(bundled_scenarios()["scene1"]).with_overrides(SETS)
+
+
+def stable(rows):
+    return sorted((json.dumps({k: v for k, v in r.items() if k not in TIMING}, sort_keys=True) for r in rows))
+
+
+def test_grid_aliases_values_and_plan():
+    axes = parse_grid(["center_error=0,0.05", "network.latency=0,1"])
+    assert [a.key for a in axes] == ["center_error.magnitude_m", "network.latency_s"]
+    assert axes[0].values == (0.0, 0.05) and axes[1].values == (0.0, 1.0)  # 0 and 0.0 are one value
+    tasks = plan(base(), axes, seeds=3)
+    assert len(tasks) == 2 * 2 * 3 and len({t.key for t in tasks}) == 12
+    assert sorted({t.seed for t in tasks}) == [1, 2, 3]  # base seed + i
+    sc = tasks[-1].scenario()
+    assert (sc.center_error.magnitude_m, sc.network.latency_s, sc.seed) == (0.05, 1.0, 3)
+
+
+@pytest.mark.parametrize("grid, words", [
+    ("center_error=0,abc", ["center_error.magnitude_m=abc", "expected a number"]),
+    ("nosuch.key=1", ["nosuch", "unknown key"]),
+    ("network.latency_s=-1", ["network.latency_s", ">= 0"]),
+    ("center_error", ["KEY.PATH=V1,V2"]),
+    ("center_error=0,0", ["repeated value"]),
+])
+def test_bad_grid_is_one_line_exit_2_and_runs_nothing(tmp_path, capsys, grid, words):
+    rc = main(["sweep", "scene1", "--grid", grid, "--out", str(tmp_path / "o"), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and err.startswith("circsim: error:")
+    assert all(w in err for w in words), err
+    assert not (tmp_path / "o" / RUNS_JSONL).exists()
+
+
+def test_pool_and_dask_give_the_same_rows(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    tasks = plan(base(), parse_grid(["center_error=0,0.2"]), seeds=2)
+    pool_out, dask_out = tmp_path / "pool", tmp_path / "dask"
+    for out in (pool_out, dask_out):
+        prepare_out(out, tasks, resume=False, overwrite=False)
+    assert execute(tasks, pool_out, workers=2, progress=False) == 4
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        assert execute(tasks, dask_out, dask_address=cluster.scheduler_address, progress=False) == 4
+    a, b = sweep_rows(pool_out, tasks), sweep_rows(dask_out, tasks)
+    assert len(a) == 4 and stable(a) == stable(b)
+    row = a[0]
+    for k in ("scenario", "seed", "center_error.magnitude_m", "network.latency_s", "first_merge_s.Lyon",
+              "first_merge_arc_deg.Nevers", "first_merge_s.mean", "false_merges", "rejected_correct",
+              "rejected_correct_rate", "merge_cycle_ms.median", "merge_cycle_ms.p95", "realtime_factor",
+              "all_merged", "run_key"):
+        assert k in row, k
+
+
+def test_cli_sweep_writes_tables_and_resume_skips_finished_rows(tmp_path, capsys):
+    out = tmp_path / "sw"
+    args = ["sweep", "scene1", "--grid", "center_error=0,0.1", "--seeds", "2", "--out", str(out), "--quiet",
+            "--workers", "2", *[x for s in SETS for x in ("--set", s)]]
+    assert main(args) == 0
+    for f in ("runs.jsonl", "runs.csv", "summary.csv", "sweep.png"):
+        assert (out / f).stat().st_size > 0, f
+    rows = read_rows(out / RUNS_JSONL)
+    assert len(rows) == 4
+    # an interrupted sweep: drop two finished rows and tear the last line, as a kill would
+    lines = (out / RUNS_JSONL).read_text().splitlines()
+    (out / RUNS_JSONL).write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])
+    capsys.readouterr()
+    assert main(args) == 2  # refuses to mix with an existing sweep without --resume
+    assert "--resume" in capsys.readouterr().err
+    assert main([*args, "--resume"]) == 0
+    err = capsys.readouterr().err
+    assert "2 already done, 2 to run" in err
+    again = read_rows(out / RUNS_JSONL)
+    assert stable(again) == stable(rows)
+    assert main([*args, "--resume"]) == 0  # nothing left to run
+    assert "4 already done, 0 to run" in capsys.readouterr().err
+    assert len(read_rows(out / RUNS_JSONL)) == 4
+
+
+def test_same_task_same_row():
+    t = plan(base(), parse_grid(["network.latency_s=0.5"]), seeds=1)[0]
+    from circsim.sweep import run_one
+
+    assert stable([run_one(t)]) == stable([run_one(t)])
+
+
+def test_sweep_error_is_a_value_error():
+    with pytest.raises(SweepError):
+        plan(base(), [], seeds=0)

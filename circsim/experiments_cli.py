@@ -74,7 +74,7 @@ def cmd_offline(args) -> int:
 def _offline(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
-    from merger.mapio import save_map, save_overlay
+    from merger.mapio import save_map
 
     from .offline import default_search_method, format_table, run_offline, summarize
 
@@ -103,9 +103,7 @@ def _offline(scenarios, settings, args) -> int:
             for r in results.values():
                 seed_results.append(r)
                 if out and r.first_merge is not None:
-                    fm = r.first_merge
-                    save_overlay([fm.layers[n] for n in fm.layers], list(fm.layers),
-                                 out / f"first_valid_{r.scene}_{r.method}_seed{r.seed}.png")
+                    save_first_merge(r, out / f"first_valid_{r.scene}_{r.method}_seed{r.seed}.png")
             bar.update(1)
     except KeyboardInterrupt:
         interrupted = True
@@ -126,6 +124,31 @@ def _offline(scenarios, settings, args) -> int:
         print("circsim: interrupted; the table holds the scenes and seeds that finished", file=sys.stderr)
         return 130
     return 0
+
+
+def save_first_merge(r, path: Path, *, margin_cells: int = 10, scale: int = 2) -> Path:
+    """The thesis-style overlay (fig. 3.15 colours) of a first valid merge, cropped to the known cells."""
+    import cv2
+    import numpy as np
+
+    from merger.overlay import overlay_rgb
+
+    fm = r.first_merge
+    names = list(fm.layers)
+    states = [fm.layers[n].states for n in names]
+    rgb = overlay_rgb(states, names)
+    rows, cols = np.nonzero(np.any(np.stack(states) > 0, axis=0))
+    if rows.size:
+        r0, r1 = max(rows.min() - margin_cells, 0), rows.max() + margin_cells + 1
+        c0, c1 = max(cols.min() - margin_cells, 0), cols.max() + margin_cells + 1
+        rgb = rgb[r0:r1, c0:c1]
+    img = cv2.cvtColor(np.ascontiguousarray(np.flipud(rgb)), cv2.COLOR_RGB2BGR)  # row 0 = lowest y → bottom
+    img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    cv2.putText(img, f"{r.scene} {r.method} +-{r.first_correct_phi_deg:g} deg (seed {r.seed})", (6, 18),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), img)
+    return path
 
 
 def _write_offline(out: Path, rows, seed_results, settings, search, args) -> None:
@@ -208,9 +231,10 @@ def cmd_sweep(args) -> int:
     where = f"dask {args.dask}" if args.dask else f"{args.workers or 'all'} local workers"
     print(f"sweep {base.name}: {len(tasks)} runs ({len(tasks) // args.seeds} combinations × {args.seeds} seeds), "
           f"{done} already done, {len(todo)} to run on {where}", file=sys.stderr)
-    interrupted = False
+    interrupted, failed = False, 0
     try:
-        execute(todo, args.out, workers=args.workers, dask_address=args.dask, progress=not args.quiet)
+        failed = execute(todo, args.out, workers=args.workers, dask_address=args.dask,
+                         progress=not args.quiet).failed
     except KeyboardInterrupt:
         interrupted = True
     rows = sweep_rows(args.out, tasks)
@@ -228,6 +252,10 @@ def cmd_sweep(args) -> int:
         print(f"circsim: interrupted; {len(rows)} of {len(tasks)} runs are in {args.out / 'runs.jsonl'} "
               "(--resume continues)", file=sys.stderr)
         return 130
+    if failed:
+        print(f"circsim: {failed} runs failed (tracebacks in {args.out / 'errors.jsonl'}; --resume retries them)",
+              file=sys.stderr)
+        return 1
     return 0
 
 

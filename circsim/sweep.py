@@ -15,7 +15,8 @@ scenario's ``center_error.magnitude_m`` and ``network.latency_s``, ``first_merge
 robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
 ``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
 cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
-``wall_s``, ``duration_s``, ``run_key``.
+``wall_s``, ``duration_s``, ``near_180_proposed`` / ``near_180_accepted`` (order hypotheses with a
+~180° error, |err − 180°| ≤ 10° for some map, and how many of them were accepted), ``run_key``.
 """
 
 from __future__ import annotations
@@ -25,10 +26,12 @@ import json
 import math
 import os
 import statistics
+import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .events import Observer
 from .scenario import Scenario, ScenarioError, scenario_from_dict
 
 # DESIGN.md and the issue spell some keys without their unit; the scenario keys carry it.
@@ -36,6 +39,7 @@ ALIASES = {"center_error": "center_error.magnitude_m", "network.latency": "netwo
            "network.jitter": "network.jitter_s", "network.period": "network.period_s",
            "latency": "network.latency_s"}
 RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV = "runs.jsonl", "runs.csv", "runs.parquet", "summary.csv"
+ERRORS_JSONL = "errors.jsonl"
 
 
 class SweepError(ValueError):
@@ -134,7 +138,26 @@ def run_one(task: RunTask) -> dict:
     from .sim import run_scenario
 
     sc = task.scenario()
-    return flatten(run_scenario(sc).to_dict(), task, sc)
+    flips = Near180()
+    row = flatten(run_scenario(sc, [flips]).to_dict(), task, sc)
+    row["near_180_proposed"], row["near_180_accepted"] = flips.proposed, flips.accepted
+    return row
+
+
+class Near180(Observer):
+    """Order hypotheses with a ~180° error (|err − 180°| ≤ 10° for some map), and the accepted ones."""
+
+    def __init__(self, tol_deg: float = 10.0) -> None:
+        self.tol_deg, self.proposed, self.accepted = tol_deg, 0, 0
+
+    def on_merge_cycle(self, c) -> None:
+        from merger.search import angle_diff_deg
+
+        for o in c.result.orders:
+            if any(abs(abs(angle_diff_deg(o.theta_deg[k], c.truth_deg[k])) - 180.0) <= self.tol_deg
+                   for k in o.theta_deg):
+                self.proposed += 1
+                self.accepted += o.accepted
 
 
 def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
@@ -206,17 +229,27 @@ def _init_worker() -> None:
         pass
 
 
+def _outcome(task: RunTask, fut):
+    """(task, row, None) for a finished run, (task, None, traceback text) for a failed one."""
+    import traceback
+
+    try:
+        return task, fut.result(), None
+    except Exception as e:  # a run that raised: record it, keep the sweep going
+        return task, None, "".join(traceback.format_exception(e)).strip()
+
+
 def _local(tasks: list[RunTask], workers: int):
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     ctx = multiprocessing.get_context("spawn")  # no fork of a parent holding threads (tqdm, OpenCV)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
-    futures = [pool.submit(run_one, t) for t in tasks]
+    futures = {pool.submit(run_one, t): t for t in tasks}
     try:
         for f in as_completed(futures):
-            yield f.result()
-    except BaseException:  # Ctrl-C or a failed run: stop now, the finished rows are already written
+            yield _outcome(futures[f], f)
+    except BaseException:  # Ctrl-C: stop now, the finished rows are already written
         procs = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
         for p in procs:
@@ -229,40 +262,54 @@ def _dask(tasks: list[RunTask], address: str):
     from distributed import Client, as_completed
 
     with Client(address) as client:
-        futures = [client.submit(run_one, t, pure=False) for t in tasks]
+        futures = {client.submit(run_one, t, pure=False): t for t in tasks}
         try:
-            for f in as_completed(futures):
-                yield f.result()
+            for f in as_completed(list(futures)):
+                yield _outcome(futures[f], f)
         except BaseException:
-            client.cancel(futures)
+            client.cancel(list(futures))
             raise
 
 
-def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask_address: str | None = None,
-            progress: bool = True, on_row: Callable[[dict], None] | None = None) -> int:
-    """Run ``tasks``, appending each finished row to ``out/runs.jsonl``; returns the rows written.
+@dataclass(frozen=True)
+class Executed:
+    written: int  # rows appended to runs.jsonl
+    failed: int  # runs that raised (details in errors.jsonl; --resume retries them)
 
-    An interrupted run (Ctrl-C reached the worker) is not written, so ``--resume`` runs it again.
+
+def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask_address: str | None = None,
+            progress: bool = True, on_row: Callable[[dict], None] | None = None) -> Executed:
+    """Run ``tasks``, appending each finished row to ``out/runs.jsonl`` as it arrives.
+
+    A run that raises is appended to ``out/errors.jsonl`` (key and traceback) and the sweep goes on;
+    an interrupted run (Ctrl-C reached it) is not written. ``--resume`` runs both again.
     """
     from tqdm import tqdm
 
     if not tasks:
-        return 0
+        return Executed(0, 0)
     workers = workers or os.cpu_count() or 1
     _end_line(out / RUNS_JSONL)
-    rows = _dask(tasks, dask_address) if dask_address else _local(tasks, min(workers, len(tasks)))
-    written = 0
+    outcomes = _dask(tasks, dask_address) if dask_address else _local(tasks, min(workers, len(tasks)))
+    written = failed = 0
     with open(out / RUNS_JSONL, "a") as f, tqdm(total=len(tasks), unit="run", desc="sweep",
                                                    disable=not progress, smoothing=0.1) as bar:
-        for row in rows:
-            if not row.get("interrupted"):
+        for task, row, error in outcomes:
+            if error is not None:
+                failed += 1
+                with open(out / ERRORS_JSONL, "a") as e:
+                    e.write(json.dumps({"run_key": task.key, "grid": dict(task.grid), "seed": task.seed,
+                                        "error": error}) + "\n")
+                bar.write(f"circsim: run {dict(task.grid)} seed {task.seed} failed: {error.splitlines()[-1]}",
+                          file=sys.stderr)
+            elif not row.get("interrupted"):
                 f.write(json.dumps(row) + "\n")
                 f.flush()
                 written += 1
                 if on_row:
                     on_row(row)
             bar.update(1)
-    return written
+    return Executed(written, failed)
 
 
 def _end_line(path: Path) -> None:

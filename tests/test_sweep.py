@@ -54,10 +54,10 @@ def test_pool_and_dask_give_the_same_rows(tmp_path):
     pool_out, dask_out = tmp_path / "pool", tmp_path / "dask"
     for out in (pool_out, dask_out):
         prepare_out(out, tasks, resume=False, overwrite=False)
-    assert execute(tasks, pool_out, workers=2, progress=False) == 4
+    assert execute(tasks, pool_out, workers=2, progress=False).written == 4
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                   dashboard_address=None) as cluster:
-        assert execute(tasks, dask_out, dask_address=cluster.scheduler_address, progress=False) == 4
+        assert execute(tasks, dask_out, dask_address=cluster.scheduler_address, progress=False).written == 4
     a, b = sweep_rows(pool_out, tasks), sweep_rows(dask_out, tasks)
     assert len(a) == 4 and stable(a) == stable(b)
     row = a[0]
@@ -103,3 +103,16 @@ def test_same_task_same_row():
 def test_sweep_error_is_a_value_error():
     with pytest.raises(SweepError):
         plan(base(), [], seeds=0)
+
+
+def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
+    from circsim.sweep import ERRORS_JSONL, RunTask
+
+    good = plan(base(), [], seeds=1)[0]
+    bad = RunTask({"name": "broken", "robots": {"speed_mps": -1}}, "broken.yaml", (), 0, "broken-key")
+    prepare_out(tmp_path, [good, bad], resume=False, overwrite=False)
+    done = execute([good, bad], tmp_path, workers=2, progress=False)
+    assert (done.written, done.failed) == (1, 1)
+    err = json.loads((tmp_path / ERRORS_JSONL).read_text())
+    assert err["run_key"] == "broken-key" and "speed_mps" in err["error"]
+    assert [r["run_key"] for r in read_rows(tmp_path / RUNS_JSONL)] == [good.key]

@@ -26,7 +26,7 @@ __all__ = [
 
 
 def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = 8.0,
-          measure: str = "similarity", method: str = "reference") -> Alignment:
+          measure: str = "similarity", method: str = "fast") -> Alignment:
     """Find the rotation θ of ``moving`` about its center onto ``ref`` about ``center_ref``.
 
     Parameters
@@ -36,7 +36,8 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
         (``center_moving`` defaults to ``center_ref``).
     roi_m : side of the square region of interest around the center, metres.
     measure : "similarity" (ω̃, eq. 3.11), "birk_carpin" (ω, eq. 2.21) or "ncc".
-    method : "reference" (the thesis's 380-rotation exhaustive search) or another registered method.
+    method : "fast" (default: the reference's answer, computed fast — :mod:`merger.fast`), "reference"
+        (the thesis's 380-rotation exhaustive search) or another registered method.
 
     Returns
     -------

@@ -160,3 +160,7 @@ def search(problem: RotationProblem, method: str = "reference") -> Alignment:
         raise ValueError(f"unknown search method {method!r}; expected one of "
                          f"{', '.join(sorted(SEARCH_METHODS))}") from None
     return fn(problem)
+
+
+# The fast method (merger/fast.py) builds on this module and registers itself in SEARCH_METHODS.
+from . import fast as _fast  # noqa: E402,F401  (imported last: it imports the names above)

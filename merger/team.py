@@ -39,7 +39,7 @@ class MergeParams:
 
     roi_m: float = 8.0
     measure: str = "similarity"
-    method: str = "reference"
+    method: str = "fast"
     verification: str = "whole_map"
     nu_min: float = 0.4
     min_support: int = 150

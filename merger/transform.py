@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from .grid import UNKNOWN_S, OccupancyGrid
@@ -72,11 +73,92 @@ def rotated_roi(moving: OccupancyGrid, theta_deg: float, center_moving, center_r
 
 def warp_grid(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
               target: OccupancyGrid) -> OccupancyGrid:
-    """Resample the whole ``moving`` grid into the geometry (shape, resolution, origin) of ``target``."""
+    """Resample the whole ``moving`` grid into the geometry (shape, resolution, origin) of ``target``.
+
+    Same result as :func:`warp_grid_numpy` (nearest neighbour: the moving cell containing each target
+    cell centre), computed with OpenCV's nearest-neighbour affine warp; the few cells whose source
+    point lies within 1/512 cell of a cell border, where OpenCV's float32 arithmetic could pick the
+    neighbour, are found analytically and recomputed exactly (:func:`_near_integer`).
+    """
+    states = _warp_states_fast(moving, theta_deg, center_moving, center_target, target)
+    if states is None:
+        return warp_grid_numpy(moving, theta_deg, center_moving, center_target, target)
+    return OccupancyGrid(states, target.resolution, target.origin)
+
+
+def warp_grid_numpy(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
+                    target: OccupancyGrid) -> OccupancyGrid:
+    """:func:`warp_grid` in plain numpy, every cell by :func:`sample_nearest` (the yardstick)."""
     rows, cols = np.indices(target.shape)
     pts_target = target.cell_center(rows, cols)
     pts_moving = apply_alignment(pts_target, -theta_deg, center_target, center_moving)
     return OccupancyGrid(sample_nearest(moving, pts_moving), target.resolution, target.origin)
+
+
+_WARP_EPS = 1.0 / 512  # OpenCV computes the source point to ~3e-4 cell or better (float32)
+_EXACT_EPS = 1e-9  # float64 margin: closer to a border, the reference's own code path decides
+_WARP_MAX_COORD = 4096.0  # beyond this, float32 coordinates are too coarse for the margin
+
+
+def _near_integer(a: np.ndarray, b: np.ndarray, eps: float):
+    """All (i, j) with a[j] + b[i] within ``eps`` of an integer, without forming the (len b, len a) grid.
+
+    With f = a mod 1 sorted (and repeated at f ± 1 for the wrap-around), row i needs f within ``eps``
+    of g = −b[i] mod 1: one binary search per row.
+    """
+    f = np.mod(a, 1.0)
+    order = np.argsort(f, kind="stable")
+    fs = f[order]
+    fs = np.concatenate([fs - 1.0, fs, fs + 1.0])
+    g = np.mod(-b, 1.0)
+    lo = np.searchsorted(fs, g - eps)
+    cnt = np.searchsorted(fs, g + eps, side="right") - lo
+    rows = np.repeat(np.arange(b.size), cnt)
+    k = np.repeat(lo - np.cumsum(cnt) + cnt, cnt) + np.arange(rows.size)
+    return rows, order[k % a.size]
+
+
+def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
+                      target: OccupancyGrid):
+    """States of :func:`warp_grid` via ``cv2.warpAffine``; None when the sizes are out of its range."""
+    h, w = target.shape
+    if not (0 < h < 32767 and 0 < w < 32767 and 0 < moving.height < 32767 and 0 < moving.width < 32767):
+        return None
+    r = rotation(-theta_deg)  # target offsets → moving offsets, as apply_alignment(·, −θ, …)
+    rt, rm = target.resolution, moving.resolution
+    gx = target.origin[0] + (np.arange(w) + 0.5) * rt - center_target[0]
+    gy = target.origin[1] + (np.arange(h) + 0.5) * rt - center_target[1]
+    # continuous moving-cell coordinates u = (A[j] + B[i], C[j] + D[i]); the cell is their floor
+    a = (center_moving[0] - moving.origin[0] + r[0, 0] * gx) / rm
+    b = r[0, 1] * gy / rm
+    c = (center_moving[1] - moving.origin[1] + r[1, 0] * gx) / rm
+    d = r[1, 1] * gy / rm
+    corners = np.array([a[0] + b[0], a[-1] + b[0], a[0] + b[-1], a[-1] + b[-1],
+                        c[0] + d[0], c[-1] + d[0], c[0] + d[-1], c[-1] + d[-1]])
+    if not np.abs(corners).max() < _WARP_MAX_COORD:
+        return None
+    m = np.array([[r[0, 0] * rt / rm, r[0, 1] * rt / rm, a[0] + b[0] - 0.5],
+                  [r[1, 0] * rt / rm, r[1, 1] * rt / rm, c[0] + d[0] - 0.5]])  # pixel-centre convention
+    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, (w, h),
+                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+    ix, jx = _near_integer(a, b, _WARP_EPS)
+    iy, jy = _near_integer(c, d, _WARP_EPS)
+    if ix.size + iy.size:
+        i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
+        ux, uy = a.take(j) + b.take(i), c.take(j) + d.take(i)
+        col, row = np.floor(ux), np.floor(uy)
+        inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
+        cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
+        flat = out.reshape(-1)
+        flat[i * w + j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
+        tight = (np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)
+        if tight.any():  # too close to call in float64: the reference's own arithmetic decides
+            it, jt = i[tight], j[tight]
+            rows_, cols_ = np.concatenate([it, it[:1]]), np.concatenate([jt, jt[:1]])  # ≥ 2 rows
+            pts = apply_alignment(target.cell_center(rows_, cols_), -theta_deg, center_target, center_moving)
+            out[it, jt] = sample_nearest(moving, pts)[:it.size]
+    return out
 
 
 def canvas(ref: OccupancyGrid, placed: list[tuple[OccupancyGrid, float, tuple[float, float]]],

@@ -1,0 +1,146 @@
+"""Benchmark: the reference rotation search vs the fast one, and a three-order merge cycle.
+
+Run from the repository root::
+
+    python benchmarks/bench_search.py            # full: ROI 128, 256, 400, 800 cells + merge cycle
+    python benchmarks/bench_search.py --quick    # fewer repetitions, no ROI 800 reference
+
+Both methods are timed in the same run, interleaved (reference, then fast, repetition after
+repetition), and the table reports medians. The fast method's polar-spectrum cache is cleared before
+every timed call, so every figure is a cold search. Scenes are generated (merger.synthetic) at a scale
+that fills the ROI: the room, the robots' circle and the laser range grow with the ROI side.
+Targets (issue 3, on a 2-core machine): ≥ 20× at ROI 256, ≥ 30× at ROI 800, and a merge cycle
+(three orders: six alignments + verification) on 256² ROIs in ≤ 15 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
+
+from merger.fast import fast_search  # noqa: E402
+from merger.polar import clear_cache  # noqa: E402
+from merger.search import RotationProblem, reference_search  # noqa: E402
+from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene  # noqa: E402
+from merger.team import MapInput, MergeParams, merge_team  # noqa: E402
+
+RES = 0.05
+ROI_CELLS = (128, 256, 400, 800)
+
+
+def scaled_views(roi_m: float, seed: int, starts=(90.0, 210.0), arc: float = 35.0):
+    """Local maps of a generated room scaled to the ROI (an 8 × 6 m room for a 12.8 m ROI)."""
+    s = roi_m / 12.8
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng, room=(8.0 * s, 6.0 * s), room_center=(0.7 * s, 0.4 * s),
+                       pillar_offset=(1.4 * s, 0.9 * s), pillar_radius=0.15 * max(s, 1.0))
+    radius, reach = 1.8 * s, 5.6 * s
+    maps = []
+    for a in starts:
+        pose = robot_pose_on_circle(a, radius, yaw_offset_deg=rng.uniform(-40, 40))
+        g, c = partial_view(scene, pose, arc_viewpoints(a, arc, radius), size_m=1.25 * roi_m, range_m=reach,
+                            beams=int(720 * max(1.0, s)), noise=0.002, rng=rng)
+        maps.append((g, c))
+    return maps
+
+
+def timed(fn, *args):
+    t = time.perf_counter()
+    out = fn(*args)
+    return (time.perf_counter() - t) * 1e3, out
+
+
+def cold_fast(problem):
+    clear_cache()
+    return fast_search(problem)
+
+
+def bench_search(cells: int, ref_reps: int, fast_reps: int, seed: int = 1):
+    roi_m = cells * RES
+    (ga, ca), (gb, cb) = scaled_views(roi_m, seed)
+    problem = RotationProblem(ga, gb, ca, cb, roi_m, "similarity")
+    t_ref, t_fast, same = [], [], True
+    for rep in range(max(ref_reps, 1)):
+        if rep < ref_reps:
+            ms, ref = timed(reference_search, problem)
+            t_ref.append(ms)
+        for _ in range(max(1, fast_reps // max(ref_reps, 1))):
+            ms, fast = timed(cold_fast, problem)
+            t_fast.append(ms)
+        if rep < ref_reps:
+            same &= (fast.theta_deg, fast.score, fast.counts) == (ref.theta_deg, ref.score, ref.counts)
+    return roi_m, t_ref, t_fast, same, problem
+
+
+def bench_cycle(ref_reps: int, fast_reps: int, seed: int = 3):
+    roi_m = 12.8
+    views = scaled_views(roi_m, seed, starts=(90.0, 210.0, 330.0))
+    maps = [MapInput(n, g, c) for n, (g, c) in zip(("Lyon", "Auckland", "Nevers"), views, strict=True)]
+    t_ref, t_fast, same = [], [], True
+    fast_params, ref_params = MergeParams(roi_m=roi_m, method="fast"), MergeParams(roi_m=roi_m, method="reference")
+    for rep in range(max(ref_reps, 1)):
+        if rep < ref_reps:
+            ms, ref = timed(merge_team, maps, ref_params)
+            t_ref.append(ms)
+        for _ in range(max(1, fast_reps // max(ref_reps, 1))):
+            clear_cache()
+            ms, fast = timed(merge_team, maps, fast_params)
+            t_fast.append(ms)
+        if rep < ref_reps:
+            same &= fast.accepted == ref.accepted and fast.top.theta_deg == ref.top.theta_deg
+    return maps, t_ref, t_fast, same
+
+
+def fmt_ms(values) -> str:
+    return f"{statistics.median(values):10.1f}" if values else f"{'-':>10}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repetitions; skip the ROI 800 reference")
+    args = ap.parse_args(argv)
+    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",) * 3
+    print(f"python {platform.python_version()}  numpy {np.__version__}  scipy {scipy.__version__}  "
+          f"opencv {cv2.__version__}  cpus {os.cpu_count()}  cv2 threads {cv2.getNumThreads()}  "
+          f"load {' '.join(f'{x:.2f}' if isinstance(x, float) else x for x in load)}")
+    print(f"{platform.platform()}  {platform.processor() or platform.machine()}")
+    print()
+    plan = {128: (5, 20), 256: (3, 15), 400: (2, 10), 800: (1, 6)}
+    if args.quick:
+        plan = {128: (1, 5), 256: (1, 5), 400: (1, 3), 800: (0, 3)}
+    header = f"{'ROI cells':>9} {'ROI m':>6} {'reference ms':>12} {'fast ms':>10} {'ratio':>8}  same answer  (reps ref/fast)"
+    print("rotation search, measure ω̃ (similarity), medians")
+    print(header)
+    for cells in ROI_CELLS:
+        ref_reps, fast_reps = plan[cells]
+        roi_m, t_ref, t_fast, same, _ = bench_search(cells, ref_reps, fast_reps)
+        ratio = statistics.median(t_ref) / statistics.median(t_fast) if t_ref else float("nan")
+        print(f"{cells:>9} {roi_m:>6.1f} {fmt_ms(t_ref):>12} {fmt_ms(t_fast)} {ratio:>7.0f}×  "
+              f"{('yes' if same else 'NO') if t_ref else '-':>11}  ({len(t_ref)}/{len(t_fast)})")
+    print()
+    ref_reps, fast_reps = (1, 10) if args.quick else (2, 30)
+    maps, t_ref, t_fast, same = bench_cycle(ref_reps, fast_reps)
+    ratio = statistics.median(t_ref) / statistics.median(t_fast)
+    sizes = ", ".join(f"{m.grid.height}x{m.grid.width}" for m in maps)
+    print(f"merge cycle: 3 maps ({sizes}), ROI 256² (12.8 m), 3 orders = 6 alignments + verification")
+    print(f"{'':>16} {'reference ms':>12} {'fast ms':>10} {'ratio':>8}  same verdict  (reps ref/fast)")
+    print(f"{'cycle':>16} {fmt_ms(t_ref):>12} {fmt_ms(t_fast)} {ratio:>7.0f}×  {'yes' if same else 'NO':>12}"
+          f"  ({len(t_ref)}/{len(t_fast)})   fast p90 {np.percentile(t_fast, 90):.1f} ms")
+    print()
+    print("targets: ≥ 20× at ROI 256, ≥ 30× at ROI 800, fast merge cycle ≤ 15 ms")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,422 @@
+"""Exact ROI similarity at many angles, computed only on the cells that can change the counts.
+
+The reference (:func:`merger.search.reference_search`) resamples the whole moving ROI for every angle
+(:func:`merger.transform.rotated_roi`) and counts cells on the whole (n, n) lattice. The counts of the
+thesis's measures (3.3.1) only involve few cells:
+
+* agr̃ (occupied in both) and the half of dis where the reference is occupied: look up the moving map
+  at the reference ROI's *occupied* lattice points only;
+* the other half of dis (moving occupied, reference free): the lattice points whose lookup falls in
+  an *occupied moving cell*. Rotation preserves distances, so every such point lies within
+  ``√2/2`` cell of the cell centre mapped forward (x_ref = c_ref + R(θ)(x_mov − c_mov)); the few
+  lattice points around it are candidates, and a candidate counts when its own (backward, exactly the
+  reference's) lookup lands in that cell;
+* free/free (Birk–Carpin's agr, and the ``free_agree`` count every result carries): the reference ROI's
+  free lattice points;
+* NCC's ``Σy``: every lattice point whose lookup is occupied (the candidates again, unfiltered).
+
+Lookups are *certified*: the continuous cell coordinate is computed from per-angle 1-D tables (the
+rotation is affine in the lattice indices) with an error below 1e-11 cell; when a coordinate is within
+1e-8 of a cell border (or a point within 1e-9 m of the moving ROI's square border), that angle is
+evaluated by the reference code path instead (:meth:`RotationProblem.moving_roi`). The counts are
+therefore exactly the reference's, whatever the floating-point details of the BLAS in use.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+from .similarity import Counts, Similarity, count_cells, index_from_counts
+
+_TOL_CELL = 1e-8  # certified floor: margin to a cell border, in cells
+_TOL_M = 1e-9  # certified square mask: margin to the ROI border, in metres
+_STRADDLE = np.uint8(4)  # crop code flag: the cell straddles the moving ROI's square border
+_CLUSTER_GAP_DEG = 1.5  # angles further apart get their own candidate set
+_SMALL_CLUSTER = 4  # clusters of at most this many angles share one candidate set
+
+
+def lattice_coords(n: int, resolution: float) -> np.ndarray:
+    """The 1-D offsets of the ROI lattice, exactly as :func:`merger.transform.roi_offsets` builds them."""
+    return (np.arange(n) - (n - 1) / 2.0) * resolution
+
+
+def fast_extract_roi(grid: OccupancyGrid, center, n: int) -> np.ndarray:
+    """:func:`merger.transform.extract_roi`, computed separably (same floating-point operations).
+
+    Without rotation the lattice's column only depends on x and its row only on y, so the containing
+    cells are two 1-D floors; the ROI is a block of the grid (or a gather of rows and columns), and
+    cells outside the grid are unknown.
+    """
+    k = lattice_coords(n, grid.resolution)
+    cols = np.floor((center[0] + k - grid.origin[0]) / grid.resolution).astype(np.int64)
+    rows = np.floor((center[1] + k - grid.origin[1]) / grid.resolution).astype(np.int64)
+    out = np.zeros((n, n), np.uint8)
+    if (np.diff(cols) == 1).all() and (np.diff(rows) == 1).all():  # a plain block (the usual case)
+        c0, r0 = int(cols[0]), int(rows[0])
+        gc0, gc1 = max(c0, 0), min(c0 + n, grid.width)
+        gr0, gr1 = max(r0, 0), min(r0 + n, grid.height)
+        if gc0 < gc1 and gr0 < gr1:
+            out[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = grid.states[gr0:gr1, gc0:gc1]
+        return out
+    padded = np.zeros((grid.height + 2, grid.width + 2), np.uint8)
+    padded[1:-1, 1:-1] = grid.states
+    return padded[np.ix_(np.clip(rows, -1, grid.height) + 1, np.clip(cols, -1, grid.width) + 1)]
+
+
+def ncc_from_sums(size: int, sx: float, sy: float, sxy: float) -> float:
+    """:func:`merger.similarity.ncc` from its sums (same arithmetic, so the same float)."""
+    if size == 0:
+        return 0.0
+    vx, vy = sx - sx * sx / size, sy - sy * sy / size
+    if vx <= 0 or vy <= 0:
+        return 0.0
+    return float((sxy - sx * sy / size) / np.sqrt(vx * vy))
+
+
+def _rotations(thetas) -> np.ndarray:
+    """(T, 2, 2) matrices R(θ) (to within an ulp of :func:`merger.transform.rotation`)."""
+    t = np.radians(np.asarray(thetas, np.float64))
+    out = np.empty((t.size, 2, 2))
+    out[:, 0, 0] = out[:, 1, 1] = np.cos(t)
+    out[:, 1, 0] = np.sin(t)
+    out[:, 0, 1] = -out[:, 1, 0]
+    return out
+
+
+class SparseEvaluator:
+    """Exact counts of a :class:`~merger.search.RotationProblem` at batches of angles.
+
+    Parameters
+    ----------
+    problem : the rotation problem; its ``measure`` decides which counts :meth:`scores` needs.
+
+    Notes
+    -----
+    :meth:`counts` returns, per angle, ``(agree, disagree, free_agree, moving_occupied)`` exactly as
+    :func:`merger.similarity.count_cells` on ``(problem.ref_roi(), problem.moving_roi(θ))`` gives them
+    (the last is NCC's Σy). :meth:`scores` returns the measure's values, equal as floats to
+    ``problem.evaluate(θ).value``; :meth:`similarity` the whole :class:`Similarity`. A batch of angles
+    is evaluated at once: the coordinates of all (point, angle) pairs are one matrix product followed
+    by a few vectorized operations.
+    """
+
+    def __init__(self, problem) -> None:
+        self.problem = problem
+        n = self.n = problem.n
+        self.res = problem.ref.resolution
+        self.k = lattice_coords(n, self.res)
+        self.half = n * self.res / 2.0
+        self.ref_roi = fast_extract_roi(problem.ref, problem.center_ref, n)
+        flat = self.ref_roi.reshape(-1)
+        self.ref_free_flat = flat == FREE_S
+        self.ref_occ_flat = flat == OCCUPIED_S
+        self.occ_h = self._homogeneous(np.flatnonzero(self.ref_occ_flat))
+        self._free_h = None  # lazily: free lattice points (free/free counts)
+        self.sx = float(self.occ_h.shape[1])
+        self.cm = np.asarray(problem.center_moving, np.float64)
+        self._crop(problem.moving)
+        self._memo: dict[float, list] = {}  # angle -> counts row (-1: not computed)
+        self._padded: dict = {}  # scratch for _near_walls
+        self._full: dict[float, np.ndarray] = {}
+
+    def _homogeneous(self, lattice_flat: np.ndarray) -> np.ndarray:
+        """(3, m) columns (kx, ky, 1) of lattice points given by flat index ``i * n + j``."""
+        i, j = np.divmod(lattice_flat, self.n)
+        out = np.empty((3, j.size))
+        self.k.take(j, out=out[0])
+        self.k.take(i, out=out[1])
+        out[2] = 1.0
+        return out
+
+    # --- the moving map around its ROI, the square border baked in ------------------------------------
+    def _crop(self, mov: OccupancyGrid) -> None:
+        """Codes of the moving cells a lattice lookup can reach: the state inside the moving ROI's square,
+        unknown outside it, and a flag on the cells that straddle the square's border."""
+        mres, (ox, oy) = mov.resolution, mov.origin
+        self.mres = mres
+        uc = (self.cm - np.array([ox, oy])) / mres
+        reach = self.half * math.sqrt(2) / mres + 2  # the ROI lattice's corners are √2·half away
+        x0, y0 = (int(math.floor(v - reach)) for v in uc)
+        w = self.w = int(math.ceil(2 * reach)) + 2
+        crop = np.zeros((w, w), np.uint8)
+        cls = []
+        for c0, o, cmv in ((x0, ox, self.cm[0]), (y0, oy, self.cm[1])):
+            # per crop column (row): 0 inside the square for sure, 1 outside, 2 straddling its border
+            lo = np.arange(c0, c0 + w) * mres + o - cmv
+            c = np.full(w, 2, np.uint8)
+            c[(lo > -self.half + _TOL_M) & (lo + mres < self.half - _TOL_M)] = 0
+            c[(lo + mres <= -self.half - _TOL_M) | (lo >= self.half + _TOL_M)] = 1
+            cls.append(c)
+        (xa, xb), (ya, yb) = ((int(np.argmax(c != 1)), w - int(np.argmax(c[::-1] != 1))) for c in cls)
+        gx0, gx1 = max(x0 + xa, 0), min(x0 + xb, mov.width)
+        gy0, gy1 = max(y0 + ya, 0), min(y0 + yb, mov.height)
+        if gx0 < gx1 and gy0 < gy1:
+            crop[gy0 - y0:gy1 - y0, gx0 - x0:gx1 - x0] = mov.states[gy0:gy1, gx0:gx1]
+        qr, qc = np.divmod(np.flatnonzero(crop == OCCUPIED_S), w)
+        strad_x, strad_y = cls[0] == 2, cls[1] == 2
+        crop[:, strad_x] |= _STRADDLE
+        crop[strad_y, :] |= _STRADDLE
+        self.code = crop.reshape(-1)
+        self.base = uc - np.array([x0, y0])  # crop coordinates: u = (c_m + d − origin)/res_m − (x0, y0)
+        # occupied moving cells: the only cells whose preimage can be occupied in the moving ROI
+        self.q_strad = strad_x[qc] | strad_y[qr]
+        self.q_rel = np.stack([(qc + x0 + 0.5) * mres + ox - self.cm[0],
+                               (qr + y0 + 0.5) * mres + oy - self.cm[1]])  # (2, Q)
+        self.q_h = np.vstack([self.q_rel, np.ones(qr.size)])
+        self.scale = self.res / mres  # one lattice step, in moving cells
+        self.rad = math.sqrt(0.5) / self.scale + 1e-6  # preimage radius of a cell, in lattice steps
+        self.rho_max = float(np.sqrt((self.q_rel ** 2).sum(axis=0)).max(initial=0.0)) / self.res
+
+    # --- certified lookups ----------------------------------------------------------------------------
+    def _states(self, pts_h: np.ndarray, rots: np.ndarray, bad: np.ndarray) -> np.ndarray:
+        """Moving-ROI states (T, m) at lattice points ``pts_h`` (3, m) for rotations ``rots`` (T, 2, 2)
+        (``d = R @ (kx, ky)``). Angles where a point is too close to a cell border, or to the square's
+        border, are flagged in ``bad``."""
+        nt = rots.shape[0]
+        g = np.empty((2 * nt, 3))
+        g[:nt, :2], g[nt:, :2] = rots[:, 0, :] / self.mres, rots[:, 1, :] / self.mres
+        g[:nt, 2], g[nt:, 2] = self.base
+        u = g @ pts_h  # (2T, m): crop x per angle, then crop y per angle (always > 1: the crop's margin)
+        f = u.astype(np.intp)  # the floor
+        u -= f
+        if u.min() < _TOL_CELL or u.max() > 1.0 - _TOL_CELL:
+            amb = ((u < _TOL_CELL) | (u > 1.0 - _TOL_CELL)).any(axis=1)
+            bad |= amb[:nt] | amb[nt:]
+        f[nt:] *= self.w
+        f[nt:] += f[:nt]
+        code = self.code.take(f[nt:])
+        if code.max(initial=0) >= _STRADDLE:
+            t_idx, m_idx = np.divmod(np.flatnonzero(code >= _STRADDLE), code.shape[1])
+            d = np.einsum("am,mba->mb", pts_h[:2, m_idx], rots[t_idx])
+            out, amb2 = self._outside(d)
+            code[t_idx, m_idx] = np.where(out, UNKNOWN_S, code[t_idx, m_idx] & 3)
+            bad[t_idx[amb2]] = True
+        return code
+
+    def _outside(self, d: np.ndarray):
+        """Points (m, 2) in metres: outside the moving ROI's square? too close to its border to tell?"""
+        a = np.abs(d)
+        return (a >= self.half).any(axis=1), (np.abs(a - self.half) < _TOL_M).any(axis=1)
+
+    def _near_walls(self, angles, keep: np.ndarray) -> np.ndarray:
+        """Lattice points (flat, within ``keep``) whose lookup can land in an occupied moving cell at one
+        of ``angles``: the lattice points within ``rad`` of a cell centre mapped forward (x_ref =
+        c_ref + R(θ)(x_mov − c_mov)), i.e. a superset of the occupied cells' preimages."""
+        n = self.n
+        fr = _rotations(angles) / self.res
+        nb = int(math.floor(2 * self.rad)) + 1  # lattice points per axis within rad of a point
+        w = n + 2 * nb
+        ns = fr.shape[0]
+        g = np.empty((2 * ns, 3))
+        g[:ns, :2], g[ns:, :2] = fr[:, 0, :], fr[:, 1, :]
+        g[:, 2] = (n - 1) / 2.0 - self.rad + nb
+        lo = np.ceil(g @ self.q_h)  # (2T, Q): first lattice point per axis, padded by nb
+        np.clip(lo, 0, w - nb, out=lo)
+        lo[ns:] *= w
+        lo[ns:] += lo[:ns]
+        d = np.arange(nb)
+        marks = (lo[ns:].astype(np.intp).reshape(-1, 1) + (d[:, None] * w + d[None, :]).reshape(1, -1)).reshape(-1)
+        if marks.size > w * w // 8:  # many marks: a dense mask
+            mask = np.zeros(w * w, bool)
+            mask[marks] = True
+            return np.flatnonzero(mask.reshape(w, w)[nb:nb + n, nb:nb + n] & keep.reshape(n, n))
+        # few marks: keep the wanted ones, then one of each (the last writer of a slot wins)
+        key = (id(keep), w)
+        if key not in self._padded:
+            padded = np.zeros((w, w), bool)
+            padded[nb:nb + n, nb:nb + n] = keep.reshape(n, n)
+            self._padded[key] = (padded.reshape(-1), np.empty(w * w, np.intp))
+        padded, slots = self._padded[key]
+        marks = marks[padded.take(marks)]
+        order = np.arange(marks.size)
+        slots[marks] = order
+        marks = marks[slots.take(marks) == order]
+        r, c = np.divmod(marks, w)
+        return np.sort((r - nb) * n + (c - nb))
+
+    def _moving_occupied(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
+        """Lattice points whose lookup is an occupied moving cell: ``out[:, 0]`` += those where the
+        reference is free (disagree), ``out[:, 1]`` += those where it is not occupied (if ``need_sy``).
+
+        The angles are grouped in clusters (gaps ≤ 1.5°): a cluster of many angles gets its own candidate
+        set (:meth:`_near_walls`), the small ones share one. Candidates are looked up exactly like the
+        reference-occupied points; each lattice point is counted once per angle.
+        """
+        ths = np.asarray(thetas)
+        order = np.argsort(ths, kind="stable")
+        cuts = np.flatnonzero(np.diff(ths[order]) > _CLUSTER_GAP_DEG) + 1
+        clusters = np.split(order, cuts)
+        groups = [c for c in clusters if len(c) > _SMALL_CLUSTER]
+        small = [c for c in clusters if len(c) <= _SMALL_CLUSTER]
+        if small:
+            groups.append(np.concatenate(small))
+        keep = ~self.ref_occ_flat if need_sy else self.ref_free_flat
+        for grp in groups:
+            pts = self._near_walls(ths[grp], keep)
+            if not pts.size:
+                continue
+            flagged = np.zeros(len(grp), bool)
+            occ = self._states(self._homogeneous(pts), rots[grp], flagged) == OCCUPIED_S
+            bad[grp] |= flagged
+            if need_sy:
+                out[grp, 1] += np.count_nonzero(occ, axis=1)
+                occ &= self.ref_free_flat.take(pts)
+            out[grp, 0] += np.count_nonzero(occ, axis=1)
+
+    # --- counts, per angle and per part ---------------------------------------------------------------
+    # row: agree, disagree where the reference is occupied (a), disagree where the moving map is occupied
+    # (b), free/free (c), moving-occupied cells where the reference is not occupied (b, NCC only), a lower
+    # bound of (b) (l); −1 = not computed yet. An angle that fell back to the reference path holds its
+    # complete row.
+    _PARTS = {"a": (0, 1), "b": (2,), "c": (3,), "l": (5,)}
+
+    def _row(self, theta: float) -> list:
+        row = self._memo.get(theta)
+        if row is None:
+            row = self._memo[theta] = [-1] * 6
+        return row
+
+    def _ensure(self, thetas, parts: str) -> None:
+        """Compute the missing ``parts`` of the rows of ``thetas``, each part in one batch."""
+        thetas = list(dict.fromkeys(float(t) for t in thetas))
+        for part in parts:
+            col = self._PARTS[part][0]
+            todo = [t for t in thetas if self._row(t)[col] < 0]
+            if not todo:
+                continue
+            rots = _rotations([-t for t in todo])  # d = R(−θ) @ (kx, ky), as rotated_roi
+            bad = np.zeros(len(todo), bool)
+            vals = np.zeros((len(todo), 2), np.int64)
+            if part == "a" and self.occ_h.shape[1]:
+                st = self._states(self.occ_h, rots, bad)
+                vals[:, 0] = np.count_nonzero(st == OCCUPIED_S, axis=1)
+                vals[:, 1] = np.count_nonzero(st == FREE_S, axis=1)
+            elif part == "b" and self.q_h.shape[1]:
+                self._moving_occupied(todo, rots, bad, vals, need_sy=self.problem.measure == "ncc")
+            elif part == "c":
+                vals[:, 0] = self._free_agree(rots, bad)
+            elif part == "l" and self.q_h.shape[1]:
+                vals[:, 0] = self._disagree_lower(todo)
+            ncc = self.problem.measure == "ncc"
+            for t, (v0, v1), b in zip(todo, vals.tolist(), bad.tolist(), strict=True):
+                row = self._memo[t]
+                if b:
+                    row[:] = self.full_counts(t)
+                elif part == "a":
+                    row[0], row[1] = v0, v1
+                elif part == "b":
+                    row[2] = v0
+                    if ncc:
+                        row[4] = v1
+                elif part == "c":
+                    row[3] = v0
+                else:
+                    row[5] = v0
+
+    def counts(self, thetas) -> np.ndarray:
+        """(T, 4) int64: agree, disagree, free_agree, moving-occupied count per angle (see class doc)."""
+        self._ensure(thetas, "abc")
+        need_sy = self.problem.measure == "ncc"
+        rows = []
+        for t in thetas:
+            row = self._memo[float(t)]
+            sy = row[0] + row[4] if need_sy or row[4] >= 0 else self._moving_occupied_count(float(t))
+            rows.append([row[0], row[1] + row[2], row[3], sy])
+        return np.array(rows, np.int64).reshape(-1, 4)
+
+    def _moving_occupied_count(self, theta: float) -> int:
+        vals = np.zeros((1, 2), np.int64)
+        bad = np.zeros(1, bool)
+        self._moving_occupied([theta], _rotations([-theta]), bad, vals, need_sy=True)
+        if bad[0]:
+            return int(self.full_counts(theta)[0] + self.full_counts(theta)[4])
+        return int(self._memo[theta][0] + vals[0, 1])
+
+    def _disagree_lower(self, thetas) -> np.ndarray:
+        """Per angle, a lower bound of the moving-occupied/reference-free count: occupied cells whose
+        centre, mapped forward, lies within the inscribed radius (less a margin) of a lattice point —
+        that point is certainly their preimage (each point has one cell, so none is counted twice)."""
+        n, nt = self.n, len(thetas)
+        fr = _rotations(thetas) / self.res
+        g = np.empty((2 * nt, 3))
+        g[:nt, :2], g[nt:, :2] = fr[:, 0, :], fr[:, 1, :]
+        g[:, 2] = (n - 1) / 2.0
+        v = g @ self.q_h  # (2T, Q) lattice coordinates (j, then i)
+        r = np.rint(v)
+        v -= r
+        v *= v
+        ok = v[:nt] + v[nt:] < (0.5 / self.scale - 1e-6) ** 2
+        ok &= ~self.q_strad
+        ok &= (r[:nt] >= 0) & (r[:nt] < n) & (r[nt:] >= 0) & (r[nt:] < n)
+        lat = np.where(ok, r[nt:] * n + r[:nt], 0).astype(np.intp)
+        ok &= self.ref_free_flat.take(lat)
+        return np.count_nonzero(ok, axis=1)
+
+    def _free_agree(self, rots, bad) -> np.ndarray:
+        if self._free_h is None:
+            self._free_h = self._homogeneous(np.flatnonzero(self.ref_free_flat))
+        if not self._free_h.shape[1]:
+            return np.zeros(rots.shape[0], np.int64)
+        return np.count_nonzero(self._states(self._free_h, rots, bad) == FREE_S, axis=1)
+
+    def full_counts(self, theta: float) -> np.ndarray:
+        """A complete row at θ by the reference code path (whole ROI, :meth:`RotationProblem.moving_roi`)."""
+        key = float(theta)
+        if key not in self._full:
+            m = self.problem.moving_roi(key)
+            c = count_cells(self.ref_roi, m)
+            self._full[key] = [c.agree, c.disagree, 0, c.free_agree,
+                               int(np.count_nonzero(m == OCCUPIED_S)) - c.agree, 0]
+        return self._full[key]
+
+    # --- measure values ---------------------------------------------------------------------------------
+    def scores(self, thetas) -> np.ndarray:
+        """Values of the problem's measure at ``thetas`` (floats equal to ``problem.evaluate(θ).value``)."""
+        self._ensure(thetas, "abc" if self.problem.measure == "birk_carpin" else "ab")
+        return np.array([self._value(self._memo[float(t)]) for t in thetas], np.float64)
+
+    def prepare(self, exact=(), bounds=()) -> None:
+        """Evaluate, in as few batches as possible, the values at ``exact`` and the bounds at ``bounds``."""
+        exact, bounds = [float(t) for t in exact], [float(t) for t in bounds]
+        self._ensure(exact + bounds, "a")
+        if self.problem.measure == "similarity":
+            self._ensure(bounds, "l")
+        self._ensure(exact, "abc" if self.problem.measure == "birk_carpin" else "ab")
+
+    def upper_bounds(self, thetas) -> np.ndarray:
+        """Upper bounds of the values at ``thetas`` from the reference-occupied points only (cheap).
+
+        For ω̃: agr̃ / (agr̃ + dis) with the moving-occupied half of dis replaced by a lower bound
+        (:meth:`_disagree_lower`); exact where the value is known. Other measures get +inf (no bound).
+        """
+        if self.problem.measure != "similarity":
+            return np.full(len(thetas), np.inf)
+        self._ensure(thetas, "al")
+        out = []
+        for t in thetas:
+            row = self._memo[float(t)]
+            if row[2] >= 0:
+                out.append(self._value(row))
+            else:
+                den = row[0] + row[1] + row[5]
+                out.append(row[0] / den if den else 0.0)
+        return np.array(out, np.float64)
+
+    def _value(self, row) -> float:
+        agree, disagree, measure = row[0], row[1] + row[2], self.problem.measure
+        if measure == "similarity":  # index_from_counts, inlined
+            return agree / (agree + disagree) if agree + disagree else 0.0
+        if measure == "ncc":
+            return ncc_from_sums(self.n * self.n, self.sx, float(agree + row[4]), float(agree))
+        return index_from_counts(Counts(agree, disagree, row[3]), measure)
+
+    def similarity(self, theta: float) -> Similarity:
+        """The full :class:`Similarity` at θ (value and all counts), as ``problem.evaluate(θ)``."""
+        key = float(theta)
+        self._ensure([key], "abc")
+        row = self._memo[key]
+        return Similarity(self._value(row), Counts(int(row[0]), int(row[1] + row[2]), int(row[3])),
+                          self.problem.measure)

@@ -1,0 +1,170 @@
+"""The fast rotation search returns the reference's answer (property tests on generated scenes).
+
+The reference (merger.search.reference_search) is the yardstick: 360 + 21 whole-ROI rotations. The fast
+method (merger.fast) must give the same angle, the same score and the same counts, for every measure,
+and the same verdict in a team merge. Its building blocks are checked against the reference code paths
+on random grids: the exact sparse evaluator against measure_fn, the separable ROI extraction against
+extract_roi, and the OpenCV whole-map warp against the numpy one.
+"""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import merger
+from merger.fast import fast_search
+from merger.grid import OccupancyGrid
+from merger.search import SEARCH_METHODS, RotationProblem, angle_diff_deg, reference_search
+from merger.similarity import measure_fn
+from merger.sparse import SparseEvaluator, fast_extract_roi
+from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
+from merger.team import MapInput, MergeParams, merge_team
+from merger.transform import extract_roi, warp_grid, warp_grid_numpy
+
+MEASURES = ("similarity", "birk_carpin", "ncc")
+SPECIAL_ANGLES = (0.0, 90.0, 180.0, 270.0, 45.0, 359.9)
+
+
+def two_views(seed: int, theta: float, *, arc_shift: float, arc: float, noise: float = 0.002):
+    """Two local maps of one generated scene, the second's frame rotated by θ about the center."""
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng, n_boxes=int(rng.integers(1, 6)))
+    a0 = rng.uniform(0, 360)
+    yaw = rng.uniform(0, 2 * math.pi)
+    frame_a = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw)
+    frame_b = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw + math.radians(theta))
+    ga, ca = partial_view(scene, frame_a, arc_viewpoints(a0, arc, 1.8, k=3), noise=noise, rng=rng)
+    gb, cb = partial_view(scene, frame_b, arc_viewpoints(a0 + arc_shift, arc, 1.8, k=3), noise=noise, rng=rng)
+    return ga, ca, gb, cb
+
+
+def random_grid(rng, shape, res, origin, occupied=0.05, free=0.4):
+    """Random states with some structure: blobs of free space and scattered occupied cells."""
+    s = (rng.random(shape) < free).astype(np.uint8)
+    s[rng.random(shape) < occupied] = 2
+    return OccupancyGrid(s, res, origin)
+
+
+def test_fast_is_registered_and_the_default():
+    assert SEARCH_METHODS["fast"] is fast_search
+    assert MergeParams().method == "fast"
+    import inspect
+
+    assert inspect.signature(merger.align).parameters["method"].default == "fast"
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 90), measure=st.sampled_from(MEASURES),
+       mres=st.sampled_from([0.05, 0.05, 0.04, 0.1]), special=st.booleans(),
+       theta=st.floats(0.0, 360.0), round_centers=st.booleans())
+def test_sparse_evaluator_equals_measure_fn(seed, n, measure, mres, special, theta, round_centers):
+    """Counts and values at batches of angles equal measure_fn on the reference's own ROIs."""
+    rng = np.random.default_rng(seed)
+    ref = random_grid(rng, tuple(rng.integers(20, 120, 2)), 0.05, tuple(rng.uniform(-3, 0, 2)))
+    mov = random_grid(rng, tuple(rng.integers(20, 120, 2)), mres, tuple(rng.uniform(-3, 0, 2)))
+    cr, cm = rng.uniform(-0.5, 2, 2), rng.uniform(-0.5, 2, 2)
+    if round_centers:  # centres on cell corners / centres: many points exactly on cell borders
+        cr, cm = np.round(cr, 1), np.round(cm, 1)
+    p = RotationProblem(ref, mov, tuple(cr), tuple(cm), n * 0.05, measure)
+    ev = SparseEvaluator(p)
+    angles = [float(a) for a in (SPECIAL_ANGLES if special else theta + np.arange(-3, 4) * 0.1)]
+    values = ev.scores(angles)
+    fn = measure_fn(measure)
+    for a, v in zip(angles, values, strict=True):
+        want = fn(p.ref_roi(), p.moving_roi(a))
+        assert v == want.value
+        got = ev.similarity(a)
+        assert got.value == want.value and got.counts == want.counts
+    np.testing.assert_array_equal(ev.ref_roi, p.ref_roi())
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 300), res=st.sampled_from([0.05, 0.1, 0.025]))
+def test_fast_extract_roi_equals_extract_roi(seed, n, res):
+    rng = np.random.default_rng(seed)
+    g = random_grid(rng, tuple(rng.integers(5, 200, 2)), res, tuple(np.round(rng.uniform(-4, 1, 2), 2)))
+    c = tuple(np.round(rng.uniform(-5, 5, 2), int(rng.integers(0, 4))))
+    np.testing.assert_array_equal(fast_extract_roi(g, c, n), extract_roi(g, c, n))
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 360.0), special=st.sampled_from((None,) + SPECIAL_ANGLES),
+       tres=st.sampled_from([0.05, 0.05, 0.1]), round_geometry=st.booleans())
+def test_warp_grid_equals_numpy_version(seed, theta, special, tres, round_geometry):
+    """The OpenCV whole-map warp used by team merging gives exactly the numpy (sample_nearest) result."""
+    rng = np.random.default_rng(seed)
+    digits = 1 if round_geometry else 6
+    mov = random_grid(rng, tuple(rng.integers(5, 300, 2)), 0.05, tuple(np.round(rng.uniform(-5, 5, 2), digits)))
+    target = OccupancyGrid.unknown(*rng.integers(5, 350, 2), tres, tuple(np.round(rng.uniform(-8, 2, 2), digits)))
+    cm, ct = tuple(np.round(rng.uniform(-2, 2, 2), digits)), tuple(np.round(rng.uniform(-2, 2, 2), digits))
+    angle = theta if special is None else special
+    np.testing.assert_array_equal(warp_grid(mov, angle, cm, ct, target).states,
+                                  warp_grid_numpy(mov, angle, cm, ct, target).states)
+
+
+def assert_same_answer(fast, ref):
+    assert abs(angle_diff_deg(fast.theta_deg, ref.theta_deg)) <= 0.1 + 1e-9
+    assert fast.theta_deg == ref.theta_deg
+    assert fast.score == ref.score and fast.counts == ref.counts
+    assert fast.method == "fast" and fast.profile.shape == (360,)
+    # the runner-up is an exact value in the far zone, so never above the reference's (the zone's best)
+    assert abs(angle_diff_deg(fast.runner_up_deg, fast.theta_deg)) >= 10.0
+    assert fast.runner_up_score <= ref.runner_up_score
+
+
+@settings(max_examples=14, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), roi=st.floats(3.2, 8.0),
+       arc_shift=st.floats(-40.0, 40.0), arc=st.floats(5.0, 60.0))
+def test_fast_equals_reference_similarity(seed, theta, roi, arc_shift, arc):
+    ga, ca, gb, cb = two_views(seed, theta, arc_shift=arc_shift, arc=arc)
+    p = RotationProblem(ga, gb, ca, cb, roi, "similarity")
+    assert_same_answer(fast_search(p), reference_search(p))
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), roi=st.floats(3.2, 8.0),
+       arc_shift=st.floats(-40.0, 40.0), measure=st.sampled_from(("birk_carpin", "ncc")))
+def test_fast_equals_reference_other_measures(seed, theta, roi, arc_shift, measure):
+    ga, ca, gb, cb = two_views(seed, theta, arc_shift=arc_shift, arc=30.0)
+    p = RotationProblem(ga, gb, ca, cb, roi, measure)
+    assert_same_answer(fast_search(p), reference_search(p))
+
+
+def test_fast_equals_reference_on_a_symmetric_scene():
+    """A point-symmetric room: two peaks 180° apart of nearly equal height, ties broken the same way."""
+    rng = np.random.default_rng(5)
+    scene = room_scene(rng, n_boxes=0, room_center=(0.0, 0.0))
+    ga, ca = partial_view(scene, (0.2, -0.1, 0.3), arc_viewpoints(40, 60, 1.8, k=3))
+    gb, cb = partial_view(scene, (-0.3, 0.2, 0.3 + math.radians(123.4)), arc_viewpoints(100, 60, 1.8, k=3))
+    for measure in ("similarity", "ncc"):
+        p = RotationProblem(ga, gb, ca, cb, 6.0, measure)
+        assert_same_answer(fast_search(p), reference_search(p))
+
+
+@settings(max_examples=3, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), arc=st.floats(15.0, 45.0), roi=st.sampled_from([4.0, 5.0, 6.0]),
+       measure=st.sampled_from(("similarity", "ncc")))
+def test_team_merge_same_verdict(seed, arc, roi, measure):
+    """merge_team with the fast search: same accepted flag, chosen order and angles as the reference."""
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng)
+    maps = []
+    for name, a in zip(("Lyon", "Auckland", "Nevers"), (90.0, 210.0, 330.0), strict=True):
+        pose = robot_pose_on_circle(a, 1.8, yaw_offset_deg=rng.uniform(-40, 40))
+        g, c = partial_view(scene, pose, arc_viewpoints(a, arc, 1.8), noise=0.002, rng=rng)
+        maps.append(MapInput(name, g, c))
+    verification = "whole_map" if measure == "similarity" else "roi_score"
+    results = [merge_team(maps, MergeParams(roi_m=roi, measure=measure, method=m, verification=verification))
+               for m in ("fast", "reference")]
+    fast, ref = results
+    assert fast.accepted == ref.accepted
+    assert [o.accepted for o in fast.orders] == [o.accepted for o in ref.orders]
+    assert fast.top.order == ref.top.order
+    for of, orf in zip(fast.orders, ref.orders, strict=True):
+        for name in of.theta_deg:
+            assert abs(angle_diff_deg(of.theta_deg[name], orf.theta_deg[name])) <= 0.1 + 1e-9
+        assert of.nu == orf.nu
+    if ref.accepted:
+        np.testing.assert_array_equal(fast.merged.states, ref.merged.states)

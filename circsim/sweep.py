@@ -15,8 +15,8 @@ scenario's ``center_error.magnitude_m`` and ``network.latency_s``, ``first_merge
 robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
 ``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
 cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
-``wall_s``, ``duration_s``, ``near_180_proposed`` / ``near_180_accepted`` (order hypotheses with a
-~180° error, |err − 180°| ≤ 10° for some map, and how many of them were accepted), ``run_key``.
+``wall_s``, ``duration_s``, ``near_180_proposed``, ``near_180_accepted``, ``top_error_deg.median``
+(see :class:`HypothesisStats`), ``run_key``.
 """
 
 from __future__ import annotations
@@ -138,17 +138,34 @@ def run_one(task: RunTask) -> dict:
     from .sim import run_scenario
 
     sc = task.scenario()
-    flips = Near180()
-    row = flatten(run_scenario(sc, [flips]).to_dict(), task, sc)
-    row["near_180_proposed"], row["near_180_accepted"] = flips.proposed, flips.accepted
+    clear_merger_caches()  # a worker runs many tasks: no cache carried from one run to the next
+    hyp = HypothesisStats()
+    row = flatten(run_scenario(sc, [hyp]).to_dict(), task, sc)
+    row.update(hyp.columns())
     return row
 
 
-class Near180(Observer):
-    """Order hypotheses with a ~180° error (|err − 180°| ≤ 10° for some map), and the accepted ones."""
+def clear_merger_caches() -> None:
+    """Empty the fast search's spectra cache, if the merger has one (it grows with every new map)."""
+    try:
+        from merger.polar import clear_cache
+    except ImportError:
+        return
+    clear_cache()
+
+
+class HypothesisStats(Observer):
+    """What the merge cycles proposed, beyond the DESIGN metrics.
+
+    ``near_180_proposed`` / ``near_180_accepted``: order hypotheses with a ~180° error (|err − 180°| ≤ 10°
+    for some map) and how many of them were accepted. ``top_error_deg.median``: median over the cycles
+    of the largest angle error of the cycle's best hypothesis (how far from ground truth the merger's
+    answer is, accepted or not).
+    """
 
     def __init__(self, tol_deg: float = 10.0) -> None:
         self.tol_deg, self.proposed, self.accepted = tol_deg, 0, 0
+        self.top_errors: list[float] = []
 
     def on_merge_cycle(self, c) -> None:
         from merger.search import angle_diff_deg
@@ -158,6 +175,11 @@ class Near180(Observer):
                    for k in o.theta_deg):
                 self.proposed += 1
                 self.accepted += o.accepted
+        self.top_errors.append(max(c.angle_error_deg.values(), default=0.0))
+
+    def columns(self) -> dict:
+        return {"near_180_proposed": self.proposed, "near_180_accepted": self.accepted,
+                "top_error_deg.median": statistics.median(self.top_errors) if self.top_errors else None}
 
 
 def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
@@ -350,11 +372,13 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
         s["runs"] = len(rs)
         s["all_merged_frac"] = sum(bool(r["all_merged"]) for r in rs) / len(rs)
         for m in ("first_merge_s.mean", "first_merge_arc_deg.mean", "rejected_correct_rate",
-                  "merge_cycle_ms.median", "realtime_factor"):
-            q1, med, q3 = _quantiles([r[m] for r in rs])
+                  "merge_cycle_ms.median", "realtime_factor", "top_error_deg.median"):
+            q1, med, q3 = _quantiles([r.get(m) for r in rs])
             s[f"{m}.median"], s[f"{m}.q1"], s[f"{m}.q3"] = med, q1, q3
         s["false_merges.total"] = sum(r["false_merges"] for r in rs)
         s["runs_with_false_merge"] = sum(r["false_merges"] > 0 for r in rs)
+        s["near_180_proposed.total"] = sum(r.get("near_180_proposed") or 0 for r in rs)
+        s["near_180_accepted.total"] = sum(r.get("near_180_accepted") or 0 for r in rs)
         out.append(s)
     return out
 
@@ -383,7 +407,7 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
     keys = [a.key for a in axes]
     head = "  ".join(f"{k:>24}" for k in keys) + (
         f"  {'runs':>4} {'merged':>6} {'first merge s':>17} {'arc deg':>17} {'false':>5} "
-        f"{'rej.corr. rate':>17} {'cycle ms':>8}")
+        f"{'rej.corr. rate':>17} {'top err°':>8} {'180° prop/acc':>13} {'cycle ms':>8}")
     lines = [head]
     for s in summary:
         def iqr(m, fmt="{:.1f}"):
@@ -391,5 +415,7 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
         lines.append("  ".join(f"{json.dumps(s[k]):>24}" for k in keys) + (
             f"  {s['runs']:>4} {s['all_merged_frac']:>6.0%} {iqr('first_merge_s.mean'):>17} "
             f"{iqr('first_merge_arc_deg.mean'):>17} {s['false_merges.total']:>5} "
-            f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8}"))
+            f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['top_error_deg.median.median']):>8} "
+            f"{s['near_180_proposed.total']:>7}/{s['near_180_accepted.total']:<5} "
+            f"{f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8}"))
     return "\n".join(lines)

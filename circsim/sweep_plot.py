@@ -1,7 +1,8 @@
 """Plots of a sweep's rows (matplotlib, Agg): metrics vs center error, one line per other setting.
 
 Each panel shows, per x value, the median over seeds and the interquartile band. Runs in which no
-robot merged have no first-merge figures; the "all robots merged" panel shows how many did.
+robot merged have no first-merge figures (the first-merge panels average the robots that merged); the
+"every robot merged" panel shows how many runs did.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ PANELS = (
     ("all_merged", "runs with every robot merged [fraction]"),
     ("false_merges", "false merges per run"),
     ("rejected_correct_rate", "rejected-correct rate (per merge cycle)"),
-    ("merge_cycle_ms.median", "merge cycle wall time, median [ms]"),
+    ("top_error_deg.median", "angle error of the best hypothesis [°] (median over cycles)"),
 )
 X_KEY = "center_error.magnitude_m"
 
@@ -46,7 +47,7 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
         for k, (label, rs) in enumerate(sorted(lines.items())):
             pts = []
             for x in xs:
-                b = _band([float(r[metric]) if r[metric] is not None else None for r in rs if r[X_KEY] == x])
+                b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs if r[X_KEY] == x])
                 if b is not None:
                     pts.append((x, *b))
             if not pts:
@@ -58,6 +59,8 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
         ax.set_xlabel("center error [m]")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
+        if metric == "top_error_deg.median":
+            ax.set_yscale("symlog", linthresh=2.0)  # 2° is the correctness tolerance; 180° flips go far up
     handles, labels = next(((h, lab) for h, lab in (ax.get_legend_handles_labels() for ax in axes.flat) if h),
                            ([], []))
     if handles:

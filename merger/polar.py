@@ -23,7 +23,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
-import cv2
 import numpy as np
 import scipy.fft as sfft
 
@@ -32,7 +31,6 @@ from .grid import FREE_S, OCCUPIED_S, OccupancyGrid
 PROFILE_LEN = 360  # 1° steps
 _BINS = PROFILE_LEN // 2 + 1
 _RING_LENGTHS = (96, 192, 384, 576)  # FFT-friendly; ~1 sample per pooled cell of arc
-_REMAP_WIDTH = 1024  # OpenCV maps must be < 32767 wide
 
 
 def pool_factor(n: int) -> int:
@@ -44,7 +42,7 @@ def pool_factor(n: int) -> int:
 class PolarLayout:
     """Rings and sample positions for an (n, n) ROI of cell size ``res``, pooled ``pool`` times.
 
-    ``x, y`` are the sample offsets from the center (metres, as (rows, 1024) float32 maps), ``mask``
+    ``x, y`` are the sample offsets from the center (metres, float32), ``mask``
     keeps samples inside the ROI's square, ``rings`` lists (first sample, ring count, ring length)
     per band and ``weight`` is the square root of every ring's sample area, in pooled cells.
     """
@@ -81,11 +79,9 @@ def polar_layout(n: int, res: float, pool: int) -> PolarLayout:
         start += rr.size * int(length)
     x, y = np.concatenate(xs), np.concatenate(ys)
     mask = (np.abs(x) < half) & (np.abs(y) < half)
-    pad = (-x.size) % _REMAP_WIDTH
-    xm = np.concatenate([x, np.zeros(pad)]).reshape(-1, _REMAP_WIDTH).astype(np.float32)
-    ym = np.concatenate([y, np.zeros(pad)]).reshape(-1, _REMAP_WIDTH).astype(np.float32)
     w = np.concatenate(weight).astype(np.float32)
-    lay = PolarLayout(n, res, pool, xm, ym, mask, tuple(rings), w, np.empty(0))
+    lay = PolarLayout(n, res, pool, x.astype(np.float32), y.astype(np.float32), mask, tuple(rings), w,
+                      np.empty(0))
     object.__setattr__(lay, "mask_spec", _spectra(lay, mask.astype(np.float32)[None]))
     return lay
 
@@ -162,10 +158,13 @@ def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
                 return spec
     pooled = _max_pool(crop, lay.pool)
     inv = np.float32(1.0 / (grid.resolution * lay.pool))
-    mx = lay.x * inv + np.float32((center[0] - org[0]) * inv - 0.5)  # pooled pixel centres, rounded
-    my = lay.y * inv + np.float32((center[1] - org[1]) * inv - 0.5)
-    s = cv2.remap(pooled, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    s = s.reshape(-1)[:lay.mask.size] * lay.mask
+    ix = (lay.x * inv + np.float32((center[0] - org[0]) * inv)).astype(np.intp)  # nearest: the pooled
+    iy = (lay.y * inv + np.float32((center[1] - org[1]) * inv)).astype(np.intp)  # cell holding the sample
+    np.clip(ix, 0, pooled.shape[1] - 1, out=ix)
+    np.clip(iy, 0, pooled.shape[0] - 1, out=iy)
+    iy *= pooled.shape[1]
+    iy += ix
+    s = pooled.reshape(-1).take(iy) * lay.mask
     spec = _spectra(lay, np.stack([s == OCCUPIED_S, s == FREE_S]).astype(np.float32))
     with _LOCK:
         _CACHE.setdefault(key, []).append((crop, spec))

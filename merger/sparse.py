@@ -6,20 +6,23 @@ thesis's measures (3.3.1) only involve few cells:
 
 * agr̃ (occupied in both) and the half of dis where the reference is occupied: look up the moving map
   at the reference ROI's *occupied* lattice points only;
-* the other half of dis (moving occupied, reference free): the lattice points whose lookup falls in
-  an *occupied moving cell*. Rotation preserves distances, so every such point lies within
-  ``√2/2`` cell of the cell centre mapped forward (x_ref = c_ref + R(θ)(x_mov − c_mov)); the few
-  lattice points around it are candidates, and a candidate counts when its own (backward, exactly the
-  reference's) lookup lands in that cell;
+* the other half of dis (moving occupied, reference free): the reference-free lattice points whose
+  lookup falls in an *occupied moving cell*. Rotation preserves distances, so every such point lies
+  within ``√2/2`` cell of that cell's centre mapped forward (x_ref = c_ref + R(θ)(x_mov − c_mov)); the
+  lattice points that close to an occupied cell at one of the angles are looked up like the others;
 * free/free (Birk–Carpin's agr, and the ``free_agree`` count every result carries): the reference ROI's
   free lattice points;
-* NCC's ``Σy``: every lattice point whose lookup is occupied (the candidates again, unfiltered).
+* NCC's Σy: every lattice point whose lookup is occupied (the same candidates, not only free ones).
 
-Lookups are *certified*: the continuous cell coordinate is computed from per-angle 1-D tables (the
-rotation is affine in the lattice indices) with an error below 1e-11 cell; when a coordinate is within
-1e-8 of a cell border (or a point within 1e-9 m of the moving ROI's square border), that angle is
-evaluated by the reference code path instead (:meth:`RotationProblem.moving_roi`). The counts are
-therefore exactly the reference's, whatever the floating-point details of the BLAS in use.
+A batch of angles is one matrix product (points × angles) and a few vectorized operations. Lookups are
+*certified*: coordinates are computed with an error far below 1e-8 cell, and when one is within 1e-8
+of a cell border (or a point within 1e-9 m of the moving ROI's square border) that angle is evaluated
+by the reference code path instead (:meth:`RotationProblem.moving_roi`). The counts are therefore the
+reference's, whatever the floating-point details (BLAS, fused multiply-add) of the machine.
+
+For ω̃ there is also a cheap upper bound (:meth:`SparseEvaluator.upper_bounds`): the moving-occupied half
+of dis replaced by a lower bound — occupied cells whose mapped centre lies inside the inscribed circle of
+a lattice point's preimage square certainly cover that point — which lets the search skip angles.
 """
 
 from __future__ import annotations
@@ -76,6 +79,18 @@ def ncc_from_sums(size: int, sx: float, sy: float, sxy: float) -> float:
     return float((sxy - sx * sy / size) / np.sqrt(vx * vy))
 
 
+def _axis_ranges(c0: int, lo: float, hi: float, w: int, tol: float) -> tuple[int, int, int, int]:
+    """Along one axis of a crop whose first cell is ``c0``, with the square's borders at continuous cell
+    coordinates ``lo`` < ``hi``: (first cell not surely outside, first surely inside, end of surely
+    inside, end of not surely outside), as crop indices. A cell c spans [c, c + 1)."""
+    tol += 1e-9  # and a margin for the float arithmetic
+    a = min(max(math.floor(lo - tol) - c0, 0), w)  # cells before a end at or before lo − tol: outside
+    b = min(max(math.ceil(hi + tol) - c0, a), w)  # cells from b start at or after hi + tol: outside
+    i = min(max(math.floor(lo + tol) + 1 - c0, a), b)  # cells from i start after lo + tol
+    j = min(max(math.ceil(hi - tol) - 1 - c0, i), b)  # cells before j end before hi − tol
+    return a, i, j, b
+
+
 def _rotations(thetas) -> np.ndarray:
     """(T, 2, 2) matrices R(θ) (to within an ulp of :func:`merger.transform.rotation`)."""
     t = np.radians(np.asarray(thetas, np.float64))
@@ -95,12 +110,11 @@ class SparseEvaluator:
 
     Notes
     -----
-    :meth:`counts` returns, per angle, ``(agree, disagree, free_agree, moving_occupied)`` exactly as
-    :func:`merger.similarity.count_cells` on ``(problem.ref_roi(), problem.moving_roi(θ))`` gives them
-    (the last is NCC's Σy). :meth:`scores` returns the measure's values, equal as floats to
-    ``problem.evaluate(θ).value``; :meth:`similarity` the whole :class:`Similarity`. A batch of angles
-    is evaluated at once: the coordinates of all (point, angle) pairs are one matrix product followed
-    by a few vectorized operations.
+    Per angle the evaluator keeps the counts of :func:`merger.similarity.count_cells` on
+    ``(problem.ref_roi(), problem.moving_roi(θ))``, part by part as they are needed (see ``_PARTS``).
+    :meth:`scores` returns the measure's values, equal as floats to ``problem.evaluate(θ).value``;
+    :meth:`similarity` the whole :class:`Similarity` (value and counts); :meth:`upper_bounds` cheap
+    bounds for ω̃; :meth:`prepare` evaluates values and bounds for many angles in few batches.
     """
 
     def __init__(self, problem) -> None:
@@ -119,6 +133,7 @@ class SparseEvaluator:
         self.cm = np.asarray(problem.center_moving, np.float64)
         self._crop(problem.moving)
         self._memo: dict[float, list] = {}  # angle -> counts row (-1: not computed)
+        self._done: dict[str, set] = {p: set() for p in self._PARTS}  # angles whose part is computed
         self._padded: dict = {}  # scratch for _near_walls
         self._full: dict[float, np.ndarray] = {}
 
@@ -142,33 +157,37 @@ class SparseEvaluator:
         x0, y0 = (int(math.floor(v - reach)) for v in uc)
         w = self.w = int(math.ceil(2 * reach)) + 2
         crop = np.zeros((w, w), np.uint8)
-        cls = []
-        for c0, o, cmv in ((x0, ox, self.cm[0]), (y0, oy, self.cm[1])):
-            # per crop column (row): 0 inside the square for sure, 1 outside, 2 straddling its border
-            lo = np.arange(c0, c0 + w) * mres + o - cmv
-            c = np.full(w, 2, np.uint8)
-            c[(lo > -self.half + _TOL_M) & (lo + mres < self.half - _TOL_M)] = 0
-            c[(lo + mres <= -self.half - _TOL_M) | (lo >= self.half + _TOL_M)] = 1
-            cls.append(c)
-        (xa, xb), (ya, yb) = ((int(np.argmax(c != 1)), w - int(np.argmax(c[::-1] != 1))) for c in cls)
+        # per crop column (row): outside the square for sure, straddling its border, or inside for sure
+        (xa, xi, xj, xb), (ya, yi, yj, yb) = (_axis_ranges(c0, (cmv - self.half - o) / mres,
+                                                           (cmv + self.half - o) / mres, w, _TOL_M / mres)
+                                              for c0, o, cmv in ((x0, ox, self.cm[0]), (y0, oy, self.cm[1])))
         gx0, gx1 = max(x0 + xa, 0), min(x0 + xb, mov.width)
         gy0, gy1 = max(y0 + ya, 0), min(y0 + yb, mov.height)
         if gx0 < gx1 and gy0 < gy1:
-            crop[gy0 - y0:gy1 - y0, gx0 - x0:gx1 - x0] = mov.states[gy0:gy1, gx0:gx1]
-        qr, qc = np.divmod(np.flatnonzero(crop == OCCUPIED_S), w)
-        strad_x, strad_y = cls[0] == 2, cls[1] == 2
-        crop[:, strad_x] |= _STRADDLE
-        crop[strad_y, :] |= _STRADDLE
+            block = mov.states[gy0:gy1, gx0:gx1]
+            crop[gy0 - y0:gy1 - y0, gx0 - x0:gx1 - x0] = block
+            qr, qc = np.divmod(np.flatnonzero(block == OCCUPIED_S), gx1 - gx0)
+            qr += gy0 - y0
+            qc += gx0 - x0
+        else:
+            qr = qc = np.empty(0, np.intp)
+        for c in (*range(xa, xi), *range(xj, xb)):  # a column or two on each side
+            crop[:, c] |= _STRADDLE
+        for r in (*range(ya, yi), *range(yj, yb)):
+            crop[r, :] |= _STRADDLE
         self.code = crop.reshape(-1)
         self.base = uc - np.array([x0, y0])  # crop coordinates: u = (c_m + d − origin)/res_m − (x0, y0)
         # occupied moving cells: the only cells whose preimage can be occupied in the moving ROI
-        self.q_strad = strad_x[qc] | strad_y[qr]
-        self.q_rel = np.stack([(qc + x0 + 0.5) * mres + ox - self.cm[0],
-                               (qr + y0 + 0.5) * mres + oy - self.cm[1]])  # (2, Q)
-        self.q_h = np.vstack([self.q_rel, np.ones(qr.size)])
+        self.q_strad = (qc < xi) | (qc >= xj) | (qr < yi) | (qr >= yj)
+        self.q_h = q_h = np.empty((3, qr.size))
+        np.multiply(qc, mres, out=q_h[0])
+        q_h[0] += (x0 + 0.5) * mres + ox - self.cm[0]
+        np.multiply(qr, mres, out=q_h[1])
+        q_h[1] += (y0 + 0.5) * mres + oy - self.cm[1]
+        q_h[2] = 1.0
+        self.q_rel = q_h[:2]  # (2, Q): cell centres relative to the moving center, metres
         self.scale = self.res / mres  # one lattice step, in moving cells
         self.rad = math.sqrt(0.5) / self.scale + 1e-6  # preimage radius of a cell, in lattice steps
-        self.rho_max = float(np.sqrt((self.q_rel ** 2).sum(axis=0)).max(initial=0.0)) / self.res
 
     # --- certified lookups ----------------------------------------------------------------------------
     def _states(self, pts_h: np.ndarray, rots: np.ndarray, bad: np.ndarray) -> np.ndarray:
@@ -273,20 +292,16 @@ class SparseEvaluator:
     # complete row.
     _PARTS = {"a": (0, 1), "b": (2,), "c": (3,), "l": (5,)}
 
-    def _row(self, theta: float) -> list:
-        row = self._memo.get(theta)
-        if row is None:
-            row = self._memo[theta] = [-1] * 6
-        return row
-
     def _ensure(self, thetas, parts: str) -> None:
         """Compute the missing ``parts`` of the rows of ``thetas``, each part in one batch."""
-        thetas = list(dict.fromkeys(float(t) for t in thetas))
         for part in parts:
-            col = self._PARTS[part][0]
-            todo = [t for t in thetas if self._row(t)[col] < 0]
+            done = self._done[part]
+            todo = [t for t in dict.fromkeys(thetas) if t not in done]
             if not todo:
                 continue
+            for t in todo:
+                if t not in self._memo:
+                    self._memo[t] = [-1] * 6
             rots = _rotations([-t for t in todo])  # d = R(−θ) @ (kx, ky), as rotated_roi
             bad = np.zeros(len(todo), bool)
             vals = np.zeros((len(todo), 2), np.int64)
@@ -301,10 +316,13 @@ class SparseEvaluator:
             elif part == "l" and self.q_h.shape[1]:
                 vals[:, 0] = self._disagree_lower(todo)
             ncc = self.problem.measure == "ncc"
+            done.update(todo)
             for t, (v0, v1), b in zip(todo, vals.tolist(), bad.tolist(), strict=True):
                 row = self._memo[t]
                 if b:
                     row[:] = self.full_counts(t)
+                    for d in self._done.values():
+                        d.add(t)
                 elif part == "a":
                     row[0], row[1] = v0, v1
                 elif part == "b":
@@ -315,25 +333,6 @@ class SparseEvaluator:
                     row[3] = v0
                 else:
                     row[5] = v0
-
-    def counts(self, thetas) -> np.ndarray:
-        """(T, 4) int64: agree, disagree, free_agree, moving-occupied count per angle (see class doc)."""
-        self._ensure(thetas, "abc")
-        need_sy = self.problem.measure == "ncc"
-        rows = []
-        for t in thetas:
-            row = self._memo[float(t)]
-            sy = row[0] + row[4] if need_sy or row[4] >= 0 else self._moving_occupied_count(float(t))
-            rows.append([row[0], row[1] + row[2], row[3], sy])
-        return np.array(rows, np.int64).reshape(-1, 4)
-
-    def _moving_occupied_count(self, theta: float) -> int:
-        vals = np.zeros((1, 2), np.int64)
-        bad = np.zeros(1, bool)
-        self._moving_occupied([theta], _rotations([-theta]), bad, vals, need_sy=True)
-        if bad[0]:
-            return int(self.full_counts(theta)[0] + self.full_counts(theta)[4])
-        return int(self._memo[theta][0] + vals[0, 1])
 
     def _disagree_lower(self, thetas) -> np.ndarray:
         """Per angle, a lower bound of the moving-occupied/reference-free count: occupied cells whose
@@ -375,8 +374,9 @@ class SparseEvaluator:
     # --- measure values ---------------------------------------------------------------------------------
     def scores(self, thetas) -> np.ndarray:
         """Values of the problem's measure at ``thetas`` (floats equal to ``problem.evaluate(θ).value``)."""
+        thetas = [float(t) for t in thetas]
         self._ensure(thetas, "abc" if self.problem.measure == "birk_carpin" else "ab")
-        return np.array([self._value(self._memo[float(t)]) for t in thetas], np.float64)
+        return np.array([self._value(self._memo[t]) for t in thetas], np.float64)
 
     def prepare(self, exact=(), bounds=()) -> None:
         """Evaluate, in as few batches as possible, the values at ``exact`` and the bounds at ``bounds``."""
@@ -394,10 +394,11 @@ class SparseEvaluator:
         """
         if self.problem.measure != "similarity":
             return np.full(len(thetas), np.inf)
+        thetas = [float(t) for t in thetas]
         self._ensure(thetas, "al")
         out = []
         for t in thetas:
-            row = self._memo[float(t)]
+            row = self._memo[t]
             if row[2] >= 0:
                 out.append(self._value(row))
             else:

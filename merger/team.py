@@ -13,7 +13,10 @@ orders the highest Σν wins.
 
 from __future__ import annotations
 
+import os
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 from .grid import OccupancyGrid
@@ -184,13 +187,30 @@ def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergePa
     return res, layers
 
 
+MERGE_THREADS = min(2, os.cpu_count() or 1)  # orders evaluated concurrently (numpy/OpenCV release the GIL)
+_POOL: tuple[int, ThreadPoolExecutor] | None = None  # (owner pid, pool): a forked child makes its own
+_POOL_LOCK = threading.Lock()
+
+
+def _map_orders(fn, orders):
+    """``[fn(o) for o in orders]``, on up to MERGE_THREADS threads (same results, same order)."""
+    global _POOL
+    if MERGE_THREADS < 2 or len(orders) < 2:
+        return [fn(o) for o in orders]
+    with _POOL_LOCK:
+        if _POOL is None or _POOL[0] != os.getpid():
+            _POOL = (os.getpid(), ThreadPoolExecutor(MERGE_THREADS, thread_name_prefix="merge-order"))
+        pool = _POOL[1]
+    return list(pool.map(fn, orders))
+
+
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
 
     Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
     """
     t0 = time.perf_counter()
-    evaluated = [evaluate_order(maps, o, params) for o in merge_orders(len(maps))]
+    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params), merge_orders(len(maps)))
     accepted = [(r, lay) for r, lay in evaluated if r.accepted]
     chosen, merged, layers = None, None, {}
     if accepted:

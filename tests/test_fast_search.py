@@ -132,6 +132,24 @@ def test_fast_equals_reference_other_measures(seed, theta, roi, arc_shift, measu
     assert_same_answer(fast_search(p), reference_search(p))
 
 
+def test_fast_equals_reference_on_degenerate_problems():
+    """Blank maps, tiny ROIs, an ROI off the maps, a map against itself on the cell lattice (every
+    lookup on a cell border at 0°/90°): the same answer, through the exact fallbacks where needed."""
+    rng = np.random.default_rng(11)
+    scene = room_scene(rng)
+    g, c = partial_view(scene, (0.0, 0.0, 0.0), arc_viewpoints(30, 40, 1.8, k=3))
+    blank = OccupancyGrid.unknown(g.height, g.width, g.resolution, g.origin)
+    on_lattice = (round(c[0], 1), round(c[1], 1))
+    cases = [(g, blank, c, c, 4.0), (blank, g, c, c, 4.0), (blank, blank, c, c, 2.0),
+             (g, g, c, c, 0.05), (g, g, c, c, 0.2), (g, g, (50.0, 50.0), c, 3.0),
+             (g, g, on_lattice, on_lattice, 3.0), (g, g, on_lattice, on_lattice, 3.05)]
+    for ref, mov, cr, cm, roi in cases:
+        for measure in ("similarity", "ncc"):
+            p = RotationProblem(ref, mov, cr, cm, roi, measure)
+            fast, want = fast_search(p), reference_search(p)
+            assert (fast.theta_deg, fast.score, fast.counts) == (want.theta_deg, want.score, want.counts)
+
+
 def test_fast_equals_reference_on_a_symmetric_scene():
     """A point-symmetric room: two peaks 180° apart of nearly equal height, ties broken the same way."""
     rng = np.random.default_rng(5)

@@ -33,7 +33,7 @@ from merger.fast import fast_search  # noqa: E402
 from merger.polar import clear_cache  # noqa: E402
 from merger.search import RotationProblem, reference_search  # noqa: E402
 from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene  # noqa: E402
-from merger.team import MapInput, MergeParams, merge_team  # noqa: E402
+from merger.team import MERGE_THREADS, MapInput, MergeParams, merge_team  # noqa: E402
 
 RES = 0.05
 ROI_CELLS = (128, 256, 400, 800)
@@ -87,7 +87,7 @@ def bench_cycle(ref_reps: int, fast_reps: int, seed: int = 3):
     roi_m = 12.8
     views = scaled_views(roi_m, seed, starts=(90.0, 210.0, 330.0))
     maps = [MapInput(n, g, c) for n, (g, c) in zip(("Lyon", "Auckland", "Nevers"), views, strict=True)]
-    t_ref, t_fast, same = [], [], True
+    t_ref, t_fast, cpu_fast, same = [], [], [], True
     fast_params, ref_params = MergeParams(roi_m=roi_m, method="fast"), MergeParams(roi_m=roi_m, method="reference")
     for rep in range(max(ref_reps, 1)):
         if rep < ref_reps:
@@ -95,11 +95,13 @@ def bench_cycle(ref_reps: int, fast_reps: int, seed: int = 3):
             t_ref.append(ms)
         for _ in range(max(1, fast_reps // max(ref_reps, 1))):
             clear_cache()
+            cpu = time.process_time()
             ms, fast = timed(merge_team, maps, fast_params)
+            cpu_fast.append((time.process_time() - cpu) * 1e3)
             t_fast.append(ms)
         if rep < ref_reps:
             same &= fast.accepted == ref.accepted and fast.top.theta_deg == ref.top.theta_deg
-    return maps, t_ref, t_fast, same
+    return maps, t_ref, t_fast, cpu_fast, same
 
 
 def fmt_ms(values) -> str:
@@ -130,14 +132,17 @@ def main(argv=None) -> int:
               f"{('yes' if same else 'NO') if t_ref else '-':>11}  ({len(t_ref)}/{len(t_fast)})")
     print()
     ref_reps, fast_reps = (1, 10) if args.quick else (2, 30)
-    maps, t_ref, t_fast, same = bench_cycle(ref_reps, fast_reps)
+    maps, t_ref, t_fast, cpu_fast, same = bench_cycle(ref_reps, fast_reps)
     ratio = statistics.median(t_ref) / statistics.median(t_fast)
     sizes = ", ".join(f"{m.grid.height}x{m.grid.width}" for m in maps)
     print(f"merge cycle: 3 maps ({sizes}), ROI 256² (12.8 m), 3 orders = 6 alignments + verification")
     print(f"{'':>16} {'reference ms':>12} {'fast ms':>10} {'ratio':>8}  same verdict  (reps ref/fast)")
     print(f"{'cycle':>16} {fmt_ms(t_ref):>12} {fmt_ms(t_fast)} {ratio:>7.0f}×  {'yes' if same else 'NO':>12}"
-          f"  ({len(t_ref)}/{len(t_fast)})   fast p90 {np.percentile(t_fast, 90):.1f} ms")
-    print()
+          f"  ({len(t_ref)}/{len(t_fast)})")
+    print(f"fast cycle: min {min(t_fast):.1f} ms, p90 {np.percentile(t_fast, 90):.1f} ms; CPU time (all threads, "
+          f"process_time) median {statistics.median(cpu_fast):.1f} ms; merge threads {MERGE_THREADS}")
+    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",) * 3
+    print(f"load at the end {' '.join(f'{x:.2f}' if isinstance(x, float) else x for x in load)}")
     print("targets: ≥ 20× at ROI 256, ≥ 30× at ROI 800, fast merge cycle ≤ 15 ms")
     return 0
 

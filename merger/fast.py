@@ -104,12 +104,16 @@ class _Coarse:
         self.need(pos)
         done = []
         for _ in range(steps + 1):
-            if not pos:
-                break
             around = {p: [q % 360 for q in (p - 1, p + 1) if ok(q)] for p in pos}
             self.bound([q for qs in around.values() for q in qs])
-            contenders = {p: [q for q in qs if not self.upper(q) < self.values[p]] for p, qs in around.items()}
-            self.need([q for qs in contenders.values() for q in qs])
+            if best is not None:  # a climb below the best whose neighbours cannot reach it stops here
+                pos = [p for p in pos if p == best or not (
+                    self.values[p] < self.values[best] and all(self.upper(q) < self.values[best]
+                                                               for q in around[p]))]
+            if not pos:
+                break
+            contenders = {p: [q for q in around[p] if not self.upper(q) < self.values[p]] for p in pos}
+            self.need([q for p in pos for q in contenders[p]])
             moved = []
             for p in pos:
                 nxt = max([p] + contenders[p], key=self.key)
@@ -119,9 +123,7 @@ class _Coarse:
                         best = p
                 else:
                     moved.append(nxt)
-            pos = [p for p in dict.fromkeys(moved)
-                   if not (best is not None and max(self.upper(q) for q in [p] + around.get(p, [])) <
-                           self.values[best])]
+            pos = list(dict.fromkeys(moved))
         done += pos  # out of steps: where the climbs stand
         return max(done + ([best] if best is not None else []), key=self.key)
 

@@ -9,8 +9,9 @@ maximum) — in three steps:
    angles are FFT cross-correlations along the angle axis (rings weighted by the area of a sample).
 2. **A few coarse angles, exactly** (:class:`merger.sparse.SparseEvaluator`, which evaluates the
    measure exactly from the few cells that can change its counts): the approximate profile's peaks near
-   its best, and the angles of a flat top, are hill-climbed on the *exact* 1° profile. For ω̃, cheap
-   upper bounds rule out most of them without evaluating them. The best exact local maximum is the
+   its best, the angles of a flat top, and the best peak half a turn away (the thesis's typical false
+   alignment, on symmetric scenes) are hill-climbed on the *exact* 1° profile. For ω̃, cheap upper
+   bounds rule out most of them without evaluating them. The best exact local maximum is the
    reference's coarse angle — provided the approximation does not rank the true best peak far below
    the others, which the property tests and sweeps over generated scenes have not seen happen.
 3. **The refinement, exactly**: the 21 angles ``coarse ± 1°`` at 0.1° (the same floats as the
@@ -46,7 +47,8 @@ from .sparse import SparseEvaluator
 
 MAX_CANDIDATES = 4  # approximate peaks looked at exactly
 MAX_HIGH = {"birk_carpin": 24}  # angles of a flat approximate top looked at exactly (default 6)
-MARGIN = 0.25  # a peak is a candidate when within MARGIN × (best − median) of the best approximate value
+MARGIN = 0.4  # a peak is a candidate when within MARGIN × (best − median) of the best approximate value
+OPPOSITE_DEG = 20  # the best peak within this of the top + 180° is always a candidate
 RUNNER_UP_CANDIDATES = 2
 RUNNER_UP_HIGH = 0  # only the far zone's approximate peaks (its edges cover the main peak's flanks)
 RUNNER_UP_STEPS = 2  # exact climbing moves allowed from each runner-up start
@@ -174,6 +176,9 @@ def fast_search(problem: RotationProblem) -> Alignment:
     approx = approximate_profile(problem)
     starts = _candidates(approx, high_limit=MAX_HIGH.get(problem.measure, 6))
     top = starts[0]
+    # the thesis's typical false alignment is a half turn (symmetric scenes): its peak is always checked
+    opposite = np.abs(angle_diff_deg(np.arange(360.0), top + 180.0)) <= OPPOSITE_DEG
+    starts += [i for i in _candidates(approx, opposite, 1, 0)[:1] if i not in starts]
     # One batch for the usual case: the refinement around the best approximate peak (it holds the peak's
     # ±1° coarse neighbours), the runner-up's likely places for any θ within ±1° of that peak (the far
     # zone's edges and its best approximate peaks), and bounds around the other candidates.

@@ -1,0 +1,643 @@
+"""Rerun recording of a run, and opening recorded runs: the only module of circsim that imports rerun.
+
+* :class:`RerunRecorder` is a run :class:`~circsim.events.Observer`: it streams the run to a live viewer
+  (``spawn=True``), to an ``.rrd`` file (``path``), or both.
+* :func:`view` opens a recorded run in the viewer shipped with rerun-sdk (``circsim view RUN.rrd [--web]``).
+* :func:`read_recording` reads a recording back with rerun's own chunk reader (tests use it).
+
+It is longer than our other modules because it is, by design, the project's only rerun import.
+
+Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
+
+    /world                                  view coordinates: right-handed, z up (static)
+      walls, pillars, objects               LineStrips3D in W (static)
+      center                                Points3D, the true common center (static)
+      robots/<robot>/circle                 LineStrips3D, the circle it drives (static)
+      robots/<robot>/pose                   Transform3D: true pose in W, every tick (+ static arrow and body)
+      robots/<robot>/scan                   Points3D: laser returns in W, at ``scan_log_hz``
+      robots/<robot>/rays                   LineStrips3D: every 4th beam, at every ``rays_every``-th scan
+      robots/<robot>/map                    Transform3D: M_i in W (static); everything below is in M_i
+      robots/<robot>/map/local              GridMap: its SLAM map at every publication
+      robots/<robot>/map/slam_pose          Transform3D: SLAM pose estimate, every tick (+ static arrow)
+      robots/<robot>/map/center_given       Points3D: the center it was given, labelled with its error
+      robots/<robot>/map/merged             GridMap: its merged map when it accepts a merge
+    /merge/<robot>/overlay                  Image: the thesis colour overlay of the aligned maps
+    /plots/<robot>/omega                    Scalars: score (ω̃ by default) of every alignment step of every order
+    /plots/<robot>/nu                       Scalars: ν of the cycle's top hypothesis per pair, and ν_min
+    /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
+    /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
+    /plots/<robot>/cycle_ms                 Scalars: merge cycle wall time
+    /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
+    /run/scenario, /run/metrics             TextDocument (static): the scenario and the final metrics JSON
+
+A plot is one entity with one series per value (names and colours in a static ``SeriesLines``), so a
+merge cycle costs one ``rr.log`` per plot.
+
+Timelines: ``sim_time`` (simulated seconds, a duration) and ``step`` (tick index); rerun adds ``log_time``.
+
+y up: rerun's 2D views draw y downward, so the world and every map are shown in *3D* views seen from
+above (eye on +z, ``eye_up`` +y): x right, y up, yaw counter-clockwise, as in rviz. A GridMap's first data
+row is drawn at its max-y edge, so ROS-ordered grids (row 0 = lowest y) are logged ``np.flipud``-ed; the
+overlay is an image in a 2D view (row 0 at the top) and is flipped the same way.
+
+Cost: poses every tick (sent in columns once per simulated second), scans at ``scan_log_hz``, local maps at the publish rate, merged maps and overlays
+at most once per ``merged_log_period_s`` of simulated time (default: the SLAM publish period; meanwhile
+the newest accepted merge is kept and logged, at its own time, when the period is over; the first,
+first-correct and false merges are logged at once).
+A run interrupted with Ctrl-C ends with ``on_end``, which closes the file with its footer: the ``.rrd`` is
+complete up to the interruption (``rerun rrd verify`` passes).
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import uuid
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from merger.overlay import colours_for, overlay_rgb
+
+from .events import MergeCycle, Observer, RobotTick
+
+APP_ID = "circsim"
+RAY_BEAM_STRIDE = 4  # rays: one beam in four keeps the fan readable
+SCAN_Z, MAP_Z = 0.03, -0.02  # scans above the maps; local maps stacked below z = 0 so they do not z-fight
+LOCAL_MAP_OPACITY_IN_WORLD = 0.35
+VIEWER_PORT = 9876  # gRPC port of the viewer that ``spawn=True`` starts (rerun's default)
+FLUSH_TIMEOUT_S = 30.0
+POSE_BATCH_S = 1.0  # simulated seconds of poses sent at once (a live viewer lags by as much)
+_LEVELS = {"debug": "DEBUG", "info": "INFO", "warn": "WARN", "warning": "WARN", "error": "ERROR"}
+_GREY = (150, 150, 150)
+_PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+            (227, 119, 194), (188, 189, 34), (23, 190, 207)]  # matplotlib tab10 without its grey
+
+
+class RerunRecorder(Observer):
+    """Records a run with rerun: live viewer, ``.rrd`` file, or both.
+
+    Parameters
+    ----------
+    path : ``.rrd`` file to write (``circsim run --rrd``); its directory must exist.
+    spawn : stream to a newly spawned native viewer (``--spawn``; needs a display).
+    scan_log_hz : laser scans logged per simulated second (every tick would dominate the run time).
+    rays_every : rays are logged with every ``rays_every``-th logged scan (0: never).
+    merged_log_period_s : minimum simulated time between two logged merged maps/overlays of a robot;
+        ``None``: the scenario's SLAM publish period; 0: every accepted merge.
+    strict : if not ``None``, set rerun's (process-wide) strict mode: ``True`` raises on bad data (tests),
+        the default (``False``) warns and drops it.
+    """
+
+    def __init__(self, path: str | os.PathLike | None = None, spawn: bool = False, scan_log_hz: float = 2.0,
+                 rays_every: int = 5, *, merged_log_period_s: float | None = None,
+                 strict: bool | None = None) -> None:
+        if path is None and not spawn:
+            raise ValueError("RerunRecorder: give an .rrd path, spawn=True, or both")
+        if path is not None:
+            p = Path(path)
+            if p.suffix != ".rrd":
+                raise ValueError(f"{p}: a rerun recording must end in .rrd")
+            if not p.parent.is_dir():
+                raise ValueError(f"{p}: directory {p.parent} does not exist")
+        if spawn and not has_display():
+            if path is None:
+                raise ValueError("--spawn needs a display ($DISPLAY/$WAYLAND_DISPLAY unset): record with "
+                                 "--rrd RUN.rrd and open it with `circsim view RUN.rrd --web`")
+            print("circsim: no display, --spawn ignored; recording to the file only", file=sys.stderr)
+            spawn = False
+        if not scan_log_hz > 0:
+            raise ValueError(f"scan_log_hz must be > 0, got {scan_log_hz}")
+        self.path = None if path is None else str(path)
+        self.spawn = spawn
+        self.scan_period_s = 1.0 / float(scan_log_hz)
+        self.rays_every = int(rays_every)
+        self.merged_log_period_s = merged_log_period_s
+        if strict is not None:
+            rr.set_strict_mode(strict)
+        self.rec: rr.RecordingStream | None = None
+
+    # --- run hooks -----------------------------------------------------------------------------------
+    def on_start(self, sim) -> None:
+        sc = sim.scenario
+        self.names = list(sim.robot_names)
+        self.colours = {n: occ for n, (occ, _) in zip(self.names, colours_for(self.names), strict=True)}
+        self.merger_cfg = sc.merger
+        self.arc_of = getattr(sim, "arc_deg", None)
+        self.merged_period_s = float(sc.slam.publish_period_s if self.merged_log_period_s is None
+                                     else self.merged_log_period_s)
+        self.step = 0
+        self.next_scan_s = 0.0
+        self.scans_logged = 0
+        self.published = dict.fromkeys(self.names, 0)
+        self.merged_next_s = dict.fromkeys(self.names, -math.inf)
+        self.merged_pending: dict[str, tuple[int, MergeCycle]] = {}
+        self.series: dict[str, tuple[str, ...]] = {}
+        self.centers_logged: dict[str, tuple[float, float]] = {}
+        self.poses: dict[str, list[tuple]] = {n: [] for n in self.names}
+        self.pose_batch_t0: float | None = None
+
+        self.rec = rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
+        bp = default_blueprint(self.names, sim.center_world, sim.centers_given)
+        self._attach_sinks(bp)
+        rec.send_recording_name(f"{sc.name} seed {sim.seed}")
+        self._log_static_world(sim)
+        rec.log("run/scenario", rr.TextDocument(_json_block(_scenario_dict(sc)), media_type="text/markdown"),
+                static=True)
+        self._at(0.0, 0)
+        pairs = zip(self.names, colours_for(self.names), strict=True)
+        legend = "; ".join(f"{n} occupied {occ} / free {free}" for n, (occ, free) in pairs)
+        self._text("sim", "INFO", f"run of {sc.name} (seed {sim.seed}), robots {', '.join(self.names)}; "
+                                  f"overlay colours (RGB): {legend}")
+
+    def on_tick(self, t: float, step: int, ticks: list[RobotTick]) -> None:
+        self._flush_pending(t)
+        self._at(t, step)
+        for k in ticks:  # poses go out in columns every POSE_BATCH_S: one rr.log per pose costs ~0.4 ms
+            self.poses[k.name].append((t, step, *k.true_pose, *k.est_pose))
+        self.pose_batch_t0 = t if self.pose_batch_t0 is None else self.pose_batch_t0
+        if t - self.pose_batch_t0 + 1e-9 >= POSE_BATCH_S:
+            self._flush_poses()
+        if t + 1e-9 >= self.next_scan_s:
+            self.next_scan_s = max(self.next_scan_s + self.scan_period_s, t)
+            rays = self.rays_every > 0 and self.scans_logged % self.rays_every == 0
+            self.scans_logged += 1
+            for k in ticks:
+                self._log_scan(k, rays)
+
+    def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
+        self._at(t, self.step)
+        self.published[robot] += 1
+        i = self.names.index(robot)
+        self.rec.log(f"world/robots/{_part(robot)}/map/local", _grid_map(grid, MAP_Z * (i + 1)))
+        if self.centers_logged.get(robot) != tuple(center_given):
+            self._log_center(robot, center_given, center_true)
+        c = grid.count()
+        self._text(robot, "DEBUG", f"published map #{self.published[robot]} ({c['occupied']} occupied, "
+                                   f"{c['free']} free cells)")
+
+    def on_map_received(self, t, recipient, sender, sent_s) -> None:
+        self._at(t, self.step)
+        self._text(recipient, "DEBUG", f"received {sender}'s map sent at {sent_s:.2f} s "
+                                       f"(delay {t - sent_s:.3f} s)")
+
+    def on_merge_cycle(self, c: MergeCycle) -> None:
+        self._at(c.t, self.step)
+        n, res = c.robot, c.result
+        self._plot_cycle(c)
+        top = res.top
+        thetas = ", ".join(f"{k} {v:.1f}°" for k, v in top.theta_deg.items() if k != n)
+        nus = ", ".join(f"{k} {v:.3f}" for k, v in top.nu.items())
+        errs = ", ".join(f"{k} {v:.2f}°" for k, v in c.angle_error_deg.items() if k != n)
+        order = ",".join(top.order)
+        if res.accepted:
+            verdict = "FALSE MERGE" if c.false_merge else "correct"
+            self._text(n, "ERROR" if c.false_merge else "INFO",
+                       f"accepted merge (order {order}): θ {thetas}; ν {nus}; angle error {errs} → {verdict}")
+            if c.first_correct:
+                arc = f", arc {self.arc_of(n, c.t):.1f}°" if self.arc_of else ""
+                self._text(n, "INFO", f"FIRST CORRECT MERGE of all maps at {c.t:.1f} s{arc}")
+            force = c.first_correct or c.false_merge or self.merged_next_s[n] == -math.inf
+            if force or c.t + 1e-9 >= self.merged_next_s[n]:
+                self._log_merged(c, self.step, c.t)
+            else:
+                self.merged_pending[n] = (self.step, c)
+        else:
+            note = " (this hypothesis was correct)" if c.correct else ""
+            self._text(n, "INFO", f"rejected merge: best order {order}, θ {thetas}; ν {nus}: "
+                                  f"{top.reason}{note}")
+
+    def on_event(self, t: float, level: str, text: str) -> None:
+        self._at(t, self.step)
+        self._text("sim", _LEVELS.get(level.lower(), "INFO"), text)
+
+    def on_end(self, result) -> None:
+        if self.rec is None:
+            return
+        step = self.step
+        self._flush_poses()
+        self._flush_pending(math.inf)
+        d = result.to_dict()
+        self._at(d["sim_s"], step)
+        firsts = ", ".join(f"{n} {'—' if r['first_merge_s'] is None else format(r['first_merge_s'], '.1f') + ' s'}"
+                           for n, r in d["robots"].items())
+        state = "INTERRUPTED (Ctrl-C)" if d["interrupted"] else "finished"
+        self._text("sim", "WARN" if d["interrupted"] else "INFO",
+                   f"run {state} at {d['sim_s']:.1f} s simulated ({d['wall_s']:.1f} s wall): first correct "
+                   f"merges {firsts}; false merges {d['false_merges']}; rejected correct {d['rejected_correct']}")
+        self.rec.log("run/metrics", rr.TextDocument(_json_block(d), media_type="text/markdown"), static=True)
+        self.close()
+
+    def close(self) -> None:
+        """Flush and close every sink (writes the .rrd footer); a second Ctrl-C cannot cut it short."""
+        if self.rec is None:
+            return
+        rec, self.rec = self.rec, None
+        main = threading.current_thread() is threading.main_thread()
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            try:
+                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+            except RuntimeError as e:  # e.g. the live viewer was closed: the file sink is unaffected
+                print(f"circsim: rerun: {e}", file=sys.stderr)
+            rec.disconnect()
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, old)
+
+    # --- pieces --------------------------------------------------------------------------------------
+    def _attach_sinks(self, bp: rrb.Blueprint) -> None:
+        rec = self.rec
+        url = f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"
+        if self.spawn:  # the bundled viewer: rr.spawn alone searches $PATH, which may lack the venv
+            rr.spawn(port=VIEWER_PORT, connect=False, recording=rec, executable_path=rerun_executable())
+        if self.spawn and self.path:
+            rec.set_sinks(rr.FileSink(self.path), rr.GrpcSink(url), default_blueprint=bp)
+        elif self.path:
+            rec.save(self.path, default_blueprint=bp)
+        else:
+            rec.connect_grpc(url, default_blueprint=bp)
+
+    def _at(self, t: float, step: int) -> None:
+        self.step = step
+        self.rec.set_time("sim_time", duration=float(t))
+        self.rec.set_time("step", sequence=int(step))
+
+    def _text(self, who: str, level: str, text: str) -> None:
+        self.rec.log(f"events/{_part(who)}", rr.TextLog(text, level=level))
+
+    def _series(self, path: str, series: list[tuple[str, float, tuple | None]]) -> None:
+        """Log one value per named series. The names (and colours) are declared once, statically; later
+        values are put in the declared order (a hypothesis lists its maps in its merge order). A different
+        set of names re-declares them, which relabels the plot's earlier values: the sim never does that."""
+        values = {name: v for name, v, _ in series}
+        declared = self.series.get(path)
+        if declared is None or set(declared) != set(values):
+            declared = self.series[path] = tuple(values)
+            colours = [col or _PALETTE[i % len(_PALETTE)] for i, (_, _, col) in enumerate(series)]
+            self.rec.log(path, rr.SeriesLines(names=list(declared), colors=colours), static=True)
+        self.rec.log(path, rr.Scalars(np.array([values[name] for name in declared], np.float64)))
+
+    def _log_static_world(self, sim) -> None:
+        rec, sc = self.rec, sim.scenario
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        walls, pillars, objects = _split_geometry(sc, sim.world.geometry())
+        rec.log("world/walls", rr.LineStrips3D(walls, colors=[(220, 220, 220)], radii=0.02), static=True)
+        rec.log("world/pillars", rr.LineStrips3D(pillars, colors=[(255, 140, 0)], radii=0.015), static=True)
+        rec.log("world/objects", rr.LineStrips3D(objects, colors=[(0, 200, 255)], radii=0.01), static=True)
+        cx, cy = sim.center_world
+        rec.log("world/center", rr.Points3D([[cx, cy, SCAN_Z]], radii=0.06, colors=[(255, 255, 255)],
+                                            labels=["center"]), static=True)
+        body = float(sc.robots.body_radius_m)
+        for n in self.names:
+            col, p = self.colours[n], f"world/robots/{_part(n)}"
+            rec.log(f"{p}/circle", rr.LineStrips3D([_circle(cx, cy, sim.circle_radius)], colors=[col],
+                                                   radii=0.005), static=True)
+            rec.log(f"{p}/pose", rr.Arrows3D(vectors=[[0.35, 0, 0]], colors=[col], labels=[n], radii=0.025),
+                    rr.LineStrips3D([_circle(0.0, 0.0, body)], colors=[col], radii=0.01), static=True)
+            s = sim.start_poses[n]
+            rec.log(f"{p}/map", _transform(s[0], s[1], s[2]), static=True)
+            rec.log(f"{p}/map/slam_pose", rr.Arrows3D(vectors=[[0.3, 0, 0]], colors=[_dim(col)], radii=0.02,
+                                                      labels=[f"{n} (SLAM)"]), static=True)
+            c_true = _to_frame(sim.center_world, s)
+            self._log_center(n, sim.centers_given[n], c_true)
+
+    def _log_center(self, robot: str, given, true) -> None:
+        err = math.hypot(given[0] - true[0], given[1] - true[1])
+        self.centers_logged[robot] = tuple(given)
+        self.rec.log(f"world/robots/{_part(robot)}/map/center_given",
+                     rr.Points3D([[given[0], given[1], SCAN_Z]], radii=0.05, colors=[self.colours[robot]],
+                                 labels=[f"{robot}'s center (error {err * 100:.1f} cm)"]), static=True)
+
+    def _log_scan(self, k: RobotTick, rays: bool) -> None:
+        x, y, yaw = k.true_pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        pts = k.scan.points()  # laser frame = robot frame
+        w = np.empty((len(pts), 3), np.float32)
+        w[:, 0] = x + c * pts[:, 0] - s * pts[:, 1]
+        w[:, 1] = y + s * pts[:, 0] + c * pts[:, 1]
+        w[:, 2] = SCAN_Z
+        p, col = f"world/robots/{_part(k.name)}", self.colours[k.name]
+        self.rec.log(f"{p}/scan", rr.Points3D(w, colors=[col], radii=0.02))
+        if rays:
+            ends = w[::RAY_BEAM_STRIDE]
+            strips = np.empty((len(ends), 2, 3), np.float32)
+            strips[:, 0] = (x, y, SCAN_Z)
+            strips[:, 1] = ends
+            self.rec.log(f"{p}/rays", rr.LineStrips3D(strips, colors=[(*col, 90)], radii=0.003))
+
+    def _plot_cycle(self, c: MergeCycle) -> None:
+        """One entity per plot, one series per value (batched: one rr.log per plot and cycle)."""
+        n, res, cfg = c.robot, c.result, self.merger_cfg
+        base = f"plots/{_part(n)}"
+        omega = []
+        for o in res.orders:
+            for moving, al in o.steps:
+                onto = o.order[0] if moving == o.order[1] else "+".join(o.order[:o.order.index(moving)])
+                omega.append((f"{al.measure} {moving}→{onto}", al.score, None))
+        self._series(f"{base}/omega", omega)
+        top, whole = res.top, cfg.verification == "whole_map"
+        self._series(f"{base}/nu", [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in top.checks.items()]
+                     + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, _GREY)])
+        self._series(f"{base}/support", [(f"support {k}", v.support, None) for k, v in top.checks.items()]
+                     + [("min_support", cfg.min_support, _GREY)])
+        if res.accepted:
+            self._series(f"{base}/angle_error_deg", [(f"{m} angle error (°)", e, self.colours.get(m))
+                                                     for m, e in c.angle_error_deg.items() if m != n])
+        self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
+
+    def _log_merged(self, c: MergeCycle, step: int, now: float) -> None:
+        n, res = c.robot, c.result
+        self._at(c.t, step)
+        self.merged_pending.pop(n, None)
+        self.merged_next_s[n] = now + self.merged_period_s
+        self.rec.log(f"world/robots/{_part(n)}/map/merged", _grid_map(res.merged, 0.0))
+        names = [n] + [k for k in res.layers if k != n]
+        rgb = overlay_fast([res.layers[k].states for k in names], names)
+        self.rec.log(f"merge/{_part(n)}/overlay", rr.Image(np.ascontiguousarray(np.flipud(rgb))))
+
+    def _flush_poses(self) -> None:
+        self.pose_batch_t0 = None
+        for n in self.names:
+            rows, self.poses[n] = self.poses[n], []  # taken first: a Ctrl-C in here cannot log them twice
+            if not rows:
+                continue
+            a = np.array(rows, np.float64)
+            idx = [rr.TimeColumn("sim_time", duration=a[:, 0]), rr.TimeColumn("step", sequence=a[:, 1].astype(np.int64))]
+            for path, (x, y, yaw) in ((f"world/robots/{_part(n)}/pose", a[:, 2:5].T),
+                                      (f"world/robots/{_part(n)}/map/slam_pose", a[:, 5:8].T)):
+                tr = np.stack([x, y, np.zeros_like(x)], axis=1)
+                q = np.stack([np.zeros_like(x), np.zeros_like(x), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
+                rr.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(translation=tr, quaternion=q),
+                                recording=self.rec)
+
+    def _flush_pending(self, t: float) -> None:
+        for n in list(self.merged_pending):
+            step, c = self.merged_pending[n]
+            if t + 1e-9 >= self.merged_next_s[n]:
+                self._log_merged(c, step, t)
+
+
+# --- blueprint ---------------------------------------------------------------------------------------
+def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
+    """World (top-down) with robots and scans, the local maps, the merged maps and overlays, plots, events."""
+    cx, cy = center_world
+    parts = [_part(n) for n in names]
+    robots = [(n, _part(n)) for n in names]
+    world = rrb.Spatial3DView(
+        name="World (top-down, y up)", origin="/world",
+        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/merged" for p in parts]],
+        eye_controls=_top_down(cx, cy, 11.0),
+        overrides={f"/world/robots/{p}/map/local": rr.GridMap.from_fields(opacity=LOCAL_MAP_OPACITY_IN_WORLD)
+                   for p in parts})
+
+    def map_view(n, p, what, title):
+        gx, gy = centers_given[n]
+        return rrb.Spatial3DView(
+            name=f"{n}: {title}", origin=f"/world/robots/{p}/map",
+            contents=[f"$origin/{what}", "$origin/slam_pose", "$origin/center_given", f"/world/robots/{p}/scan"],
+            eye_controls=_top_down(gx, gy, 11.0))
+
+    local_maps = rrb.Horizontal(*[map_view(n, p, "local", "local map (its frame)") for n, p in robots])
+    merged = rrb.Vertical(*[rrb.Tabs(
+        rrb.Spatial2DView(name=f"{n}: overlay of aligned maps", origin=f"/merge/{p}"),
+        map_view(n, p, "merged", "merged map"), name=n) for n, p in robots])
+
+    def plots(n, p):
+        ts = [rrb.TimeSeriesView(name=f"{n}: {title}", origin=f"/plots/{p}/{what}")
+              for what, title in (("omega", "ω̃ of each alignment step, every order"),
+                                  ("nu", "ν of the top hypothesis"), ("support", "support (agr̃ + dis)"),
+                                  ("angle_error_deg", "accepted angle error vs truth (°)"))]
+        ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle wall time (ms)", origin=f"/plots/{p}/cycle_ms"))
+        return rrb.Vertical(*ts, name=n)
+
+    right = rrb.Vertical(rrb.Tabs(*[plots(n, p) for n, p in robots]),
+                         rrb.TextLogView(name="Events", origin="/events"), row_shares=[3, 2])
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Vertical(world, local_maps, row_shares=[3, 2]), merged, right, column_shares=[3, 2, 3]),
+        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="expanded", timeline="sim_time"))
+
+
+def _top_down(x: float, y: float, height: float) -> rrb.EyeControls3D:
+    return rrb.EyeControls3D(position=[x, y, height], look_target=[x, y, 0.0], eye_up=[0.0, 1.0, 0.0])
+
+
+# --- viewing and reading recordings ------------------------------------------------------------------
+def rerun_executable() -> str:
+    """The native ``rerun`` viewer/CLI shipped in the rerun-sdk wheel (package ``rerun_cli``)."""
+    exe = "rerun.exe" if sys.platform.startswith("win") else "rerun"
+    candidates = []
+    try:
+        import rerun_cli
+
+        d = Path(rerun_cli.__file__).parent
+        candidates += [d / "Rerun.app" / "Contents" / "MacOS" / "Rerun", d / exe]
+    except ImportError:  # pragma: no cover - rerun-sdk always ships it
+        pass
+    candidates += [Path(sys.executable).parent / exe]
+    for c in candidates:
+        if c.is_file():
+            return str(c)
+    found = shutil.which("rerun")
+    if found:
+        return found
+    raise RuntimeError("the rerun viewer executable was not found; install rerun-sdk (pip install rerun-sdk)")
+
+
+def has_display() -> bool:
+    """Whether a native window can open: on Linux/BSD, ``$DISPLAY`` or ``$WAYLAND_DISPLAY`` is set."""
+    if sys.platform.startswith(("win", "darwin")):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def check_rrd(path) -> Path:
+    """``path`` as a Path if it is a readable rerun recording, else ValueError naming the file and problem."""
+    p = Path(path)
+    if not p.exists():
+        raise ValueError(f"{p}: no such file")
+    if not p.is_file():
+        raise ValueError(f"{p}: not a file")
+    if p.suffix != ".rrd":
+        raise ValueError(f"{p}: not a rerun recording (expected a .rrd file)")
+    with p.open("rb") as f:
+        head = f.read(4)
+    if not head.startswith(b"RRF"):
+        raise ValueError(f"{p}: not a rerun recording ({'empty file' if not head else 'unknown header'})")
+    return p
+
+
+def view(path, *, web: bool = False, web_port: int = 9090, grpc_port: int = 9876) -> int:
+    """Open a recorded run in the rerun viewer; returns an exit code (``circsim view RUN.rrd [--web]``).
+
+    Native viewer by default. Without a display (Linux without ``$DISPLAY``/``$WAYLAND_DISPLAY``) it prints
+    one line offering the web viewer and returns 1. ``web=True`` serves the web viewer bound to 127.0.0.1
+    (``rerun --serve-web RUN.rrd --bind 127.0.0.1``; browse http://127.0.0.1:9090) until Ctrl-C (returns 130).
+    Raises ValueError for a missing file or one that is not an .rrd recording.
+    """
+    p = check_rrd(path)
+    exe = rerun_executable()
+    if web:
+        print(f"circsim view: serving {p} at http://127.0.0.1:{web_port} (Ctrl-C to stop)", flush=True)
+        return _run([exe, "--serve-web", str(p), "--bind", "127.0.0.1", "--web-viewer-port", str(web_port),
+                     "--port", str(grpc_port)])
+    if not has_display():
+        print(f"circsim view: no display ($DISPLAY/$WAYLAND_DISPLAY unset); use the web viewer: "
+              f"circsim view {p} --web  (= rerun --serve-web {p} --bind 127.0.0.1, then open http://127.0.0.1:9090)")
+        return 1
+    return _run([exe, str(p)])
+
+
+def _run(cmd: list[str]) -> int:
+    proc = subprocess.Popen(cmd)
+    try:
+        return proc.wait()
+    except KeyboardInterrupt:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        return 130
+
+
+def read_recording(path) -> dict[str, list[dict]]:
+    """Every logged row of a recording, by entity path, read with rerun's own reader (``rerun.chunk``).
+
+    Returns ``{entity_path: [row, ...]}`` with rerun's paths (leading ``/``, e.g. ``/events/Lyon``). A row
+    is a dict: ``static`` (bool), ``sim_time`` (float s or None), ``step`` (int or None) and one entry per
+    component, keyed ``"Archetype:field"`` (``"Scalars:scalars"``, ``"TextLog:text"``, ...), holding the
+    logged batch as a list (blobs such as ``GridMap:data`` as uint8 arrays). Rows are in (static, step,
+    sim_time) order. Works on files without a footer too (e.g. a killed process).
+    """
+    from rerun.chunk import RrdReader
+
+    p = check_rrd(path)
+    out: dict[str, list[dict]] = {}
+    for chunk in RrdReader(str(p)).stream():
+        rb = chunk.to_record_batch()
+        n = rb.num_rows
+        rows = [{"static": chunk.is_static, "sim_time": None, "step": None} for _ in range(n)]
+        for name, col in zip(rb.schema.names, rb.columns, strict=True):
+            if name in ("rerun.controls.RowId", "log_time"):
+                continue
+            if name == "sim_time":
+                vals = [None if v is None else v / 1e9 for v in col.cast("int64").to_pylist()]
+            else:
+                vals = _column_values(col)
+            for r, v in zip(rows, vals, strict=True):
+                r[name] = v
+        out.setdefault(chunk.entity_path, []).extend(rows)
+    for rows in out.values():
+        rows.sort(key=lambda r: (not r["static"], r["step"] if r["step"] is not None else -1,
+                                 r["sim_time"] if r["sim_time"] is not None else -1.0))
+    return out
+
+
+def _column_values(col) -> list:
+    t = col.type
+    is_blob = (hasattr(t, "value_type") and hasattr(t.value_type, "value_type")
+               and str(t.value_type.value_type) == "uint8")
+    if not is_blob:
+        return col.to_pylist()
+    return [None if not row.is_valid else [np.asarray(b.values.to_numpy(zero_copy_only=False), np.uint8)
+                                           for b in row.values] for row in col]
+
+
+# --- helpers -------------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=16)
+def _overlay_lut(names: tuple[str, ...]) -> np.ndarray:
+    """RGB of every combination of cell states (3**N, 3), computed by :func:`merger.overlay.overlay_rgb`."""
+    combos = np.array(list(itertools.product(range(3), repeat=len(names))), np.uint8)
+    return overlay_rgb([combos[:, k, None] for k in range(len(names))], list(names))[:, 0]
+
+
+def overlay_fast(layers: list[np.ndarray], names: list[str]) -> np.ndarray:
+    """Same image as :func:`merger.overlay.overlay_rgb` (which it tabulates), ~20x faster for N <= 5 maps.
+
+    A cell's colour depends only on the states of that cell in the N layers, so the 3**N colours are
+    computed once by ``overlay_rgb`` itself and looked up.
+    """
+    if len(names) > 5:
+        return overlay_rgb(layers, names)
+    code = np.array(layers[0], np.uint8)  # 3**5 = 243 codes fit in uint8
+    for states in layers[1:]:
+        code *= 3
+        code += states
+    return np.take(_overlay_lut(tuple(names)), code, axis=0)
+
+
+def _part(name: str) -> str:
+    """A robot name as one entity-path part (letters, digits, '-', '_')."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", str(name))
+
+
+def _transform(x: float, y: float, yaw: float) -> rr.Transform3D:
+    return rr.Transform3D(translation=[float(x), float(y), 0.0],
+                          rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=float(yaw)))
+
+
+def _grid_map(grid, z: float) -> rr.GridMap:
+    """A ROS-ordered occupancy grid (row 0 = lowest y) as a GridMap with the rviz colour map."""
+    data = np.ascontiguousarray(np.flipud(grid.to_ros()))  # GridMap draws its first data row at max y
+    return rr.GridMap(data=data.view(np.uint8).tobytes(),
+                      format=rr.components.ImageFormat(width=grid.width, height=grid.height, color_model="L",
+                                                       channel_datatype="U8"),
+                      cell_size=grid.resolution, translation=[grid.origin[0], grid.origin[1], z],
+                      colormap=rr.components.Colormap.RvizMap)
+
+
+def _circle(cx: float, cy: float, r: float, n: int = 96) -> np.ndarray:
+    a = np.linspace(0.0, 2.0 * math.pi, n + 1)
+    return np.stack([cx + r * np.cos(a), cy + r * np.sin(a), np.zeros_like(a)], axis=1)
+
+
+def _to_frame(xy, pose) -> tuple[float, float]:
+    """World point ``xy`` in the frame of ``pose`` (x, y, yaw)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = xy[0] - pose[0], xy[1] - pose[1]
+    return (c * dx + s * dy, -s * dx + c * dy)
+
+
+def _dim(col) -> tuple[int, int, int]:
+    return tuple(int(0.5 * v + 0.5 * 255) for v in col)
+
+
+def _split_geometry(sc, geo):
+    """Static geometry as line strips: walls (the room), pillars, and the remaining objects."""
+    walls = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in sc.world.room.wall_segments()]
+    wall_keys = {_key(s) for s in sc.world.room.wall_segments()} | {_key((c, d, a, b)) for a, b, c, d
+                                                                     in sc.world.room.wall_segments()}
+    pillar_keys = {_key((*p.center, p.radius)) for p in sc.world.pillars}
+    pillars = [_circle(p.center[0], p.center[1], p.radius, 48) for p in sc.world.pillars]
+    objects = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in geo.segments
+               if _key((a, b, c, d)) not in wall_keys]
+    objects += [_circle(x, y, r, 24) for x, y, r in geo.circles if _key((x, y, r)) not in pillar_keys]
+    return walls, pillars, objects
+
+
+def _key(v) -> tuple:
+    return tuple(round(float(x), 6) for x in v)
+
+
+def _scenario_dict(sc) -> dict:
+    from .scenario import scenario_to_dict
+
+    return scenario_to_dict(sc)
+
+
+def _json_block(d) -> str:
+    return "```json\n" + json.dumps(d, indent=2, default=str) + "\n```\n"

@@ -21,6 +21,7 @@ cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``,
 
 from __future__ import annotations
 
+import csv
 import itertools
 import json
 import math
@@ -383,20 +384,38 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
     return out
 
 
+def _columns(rows: list[dict]) -> list[str]:
+    cols: dict[str, None] = {}
+    for r in rows:
+        cols.update(dict.fromkeys(r))
+    return list(cols)
+
+
+def _write_csv(rows: list[dict], path: Path) -> None:
+    cols = _columns(rows)
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols, restval="")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else json.dumps(v) if isinstance(v, list | dict) else v)
+                        for k, v in r.items()})
+
+
 def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]:
-    import pandas as pd
-
+    """runs.csv and summary.csv (one row per run / per combination); runs.parquet when pyarrow is
+    installed (the ``sweep`` extra). Columns are the union of all rows' keys, in first-seen order."""
     paths = [out / RUNS_CSV, out / SUMMARY_CSV]
-    df = pd.DataFrame(rows)
-    df.to_csv(paths[0], index=False)
-    pd.DataFrame(summary).to_csv(paths[1], index=False)
+    _write_csv(rows, paths[0])
+    _write_csv(summary, paths[1])
     try:
-        import pyarrow  # noqa: F401
-
-        df.to_parquet(out / RUNS_PARQUET, index=False)
-        paths.append(out / RUNS_PARQUET)
+        import pyarrow as pa
+        import pyarrow.parquet as pq
     except ImportError:
-        pass
+        return paths
+    cols = _columns(rows)
+    table = pa.Table.from_pylist([{c: r.get(c) for c in cols} for r in rows])
+    pq.write_table(table, out / RUNS_PARQUET)
+    paths.append(out / RUNS_PARQUET)
     return paths
 
 

@@ -72,6 +72,16 @@ def choice(*options):
     return check
 
 
+def registered(registry: dict, what: str):
+    """A name that must be a key of ``registry`` when the value is checked (so methods registered
+    after import, e.g. by a plug-in, are accepted)."""
+    def check(v, path):
+        if v not in registry:
+            raise bad(path, f"a registered {what}: one of " + ", ".join(repr(o) for o in sorted(registry)), v)
+        return v
+    return check
+
+
 def optional_path(v, path):
     if v is not None and not isinstance(v, str):
         raise bad(path, "null or a path", v)

@@ -216,8 +216,17 @@ def register_sweep(sub) -> None:
 
 def cmd_sweep(args) -> int:
     from .cli import load_with_overrides
-    from .sweep import (SweepError, execute, format_summary, parse_grid, plan, prepare_out, summarize,
-                        sweep_rows, write_tables)
+    from .sweep import (
+        SweepError,
+        execute,
+        format_summary,
+        parse_grid,
+        plan,
+        prepare_out,
+        summarize,
+        sweep_rows,
+        write_tables,
+    )
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")

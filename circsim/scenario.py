@@ -19,13 +19,25 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
+from merger.search import SEARCH_METHODS
+
 from .laser import LaserConfig
 from .network import NetworkConfig
 from .slam import DriftConfig, LogOddsConfig, SlamConfig
-from merger.search import SEARCH_METHODS
-
-from .validate import (Invalid, bad, choice, integer, join, number, optional_path, registered, section, seq,
-                       string, vec2)
+from .validate import (
+    Invalid,
+    bad,
+    choice,
+    integer,
+    join,
+    number,
+    optional_path,
+    registered,
+    section,
+    seq,
+    string,
+    vec2,
+)
 
 Vec2 = tuple[float, float]
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"

@@ -429,7 +429,7 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
         f"{'rej.corr. rate':>17} {'top err°':>8} {'180° prop/acc':>13} {'cycle ms':>8}")
     lines = [head]
     for s in summary:
-        def iqr(m, fmt="{:.1f}"):
+        def iqr(m, fmt="{:.1f}", s=s):
             return f"{f(s[m + '.median'], fmt)} [{f(s[m + '.q1'], fmt)}–{f(s[m + '.q3'], fmt)}]"
         lines.append("  ".join(f"{json.dumps(s[k]):>24}" for k in keys) + (
             f"  {s['runs']:>4} {s['all_merged_frac']:>6.0%} {iqr('first_merge_s.mean'):>17} "

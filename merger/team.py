@@ -44,8 +44,8 @@ class MergeParams:
     measure: str = "similarity"
     method: str = "fast"
     verification: str = "whole_map"
-    nu_min: float = 0.4
-    min_support: int = 150
+    nu_min: float = 0.5
+    min_support: int = 200
     score_min: float = 0.5
 
     def __post_init__(self) -> None:

@@ -8,8 +8,18 @@ import pytest
 
 from circsim.cli import main
 from circsim.motion import offline_schedule
-from circsim.offline import (THESIS_PHI_DEG, ArcDriftSlam, OfflineBench, OfflineSettings, calibrated_threshold,
-                             default_search_method, judge_cycle, method_params, run_offline, summarize)
+from circsim.offline import (
+    THESIS_PHI_DEG,
+    ArcDriftSlam,
+    OfflineBench,
+    OfflineSettings,
+    calibrated_threshold,
+    default_search_method,
+    judge_cycle,
+    method_params,
+    run_offline,
+    summarize,
+)
 from circsim.scenario import bundled_scenarios, load_scenario
 from merger.search import Alignment
 from merger.similarity import Counts

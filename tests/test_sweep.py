@@ -7,7 +7,16 @@ import pytest
 from circsim.cli import main
 from circsim.offline import default_search_method
 from circsim.scenario import bundled_scenarios, load_scenario
-from circsim.sweep import RUNS_JSONL, SweepError, execute, parse_grid, plan, prepare_out, read_rows, sweep_rows
+from circsim.sweep import (
+    RUNS_JSONL,
+    SweepError,
+    execute,
+    parse_grid,
+    plan,
+    prepare_out,
+    read_rows,
+    sweep_rows,
+)
 
 # short runs with a small ROI: the machinery is under test here, not the merger
 SETS = [f"merger.method={default_search_method()}", "merger.roi_m=3", "duration_s=3"]
@@ -19,7 +28,7 @@ def base():
 
 
 def stable(rows):
-    return sorted((json.dumps({k: v for k, v in r.items() if k not in TIMING}, sort_keys=True) for r in rows))
+    return sorted(json.dumps({k: v for k, v in r.items() if k not in TIMING}, sort_keys=True) for r in rows)
 
 
 def test_grid_aliases_values_and_plan():

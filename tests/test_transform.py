@@ -2,8 +2,15 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
-from merger.transform import (apply_alignment, canvas, extract_roi, paste, rotated_roi, sample_nearest,
-                              warp_grid)
+from merger.transform import (
+    apply_alignment,
+    canvas,
+    extract_roi,
+    paste,
+    rotated_roi,
+    sample_nearest,
+    warp_grid,
+)
 
 U, F, O = 0, 1, 2
 

@@ -1,6 +1,7 @@
 """Plots of a sweep's rows (matplotlib, Agg): metrics vs center error, one line per other setting.
 
-Each panel shows, per x value, the median over seeds and the interquartile band. Runs in which no
+Each panel shows, per x value, the median over seeds and the interquartile band (the "every robot
+merged" panel: the fraction of runs). Runs in which no
 robot merged have no first-merge figures (the first-merge panels average the robots that merged); the
 "every robot merged" panel shows how many runs did.
 """
@@ -21,12 +22,18 @@ PANELS = (
 X_KEY = "center_error.magnitude_m"
 
 
-def _band(values):
+FRACTIONS = {"all_merged"}  # 0/1 per run: plotted as the fraction of runs, without a band
+
+
+def _band(values, fraction: bool = False):
     import numpy as np
 
     v = np.array([float(x) for x in values if x is not None], dtype=float)
     if v.size == 0:
         return None
+    if fraction:
+        m = float(v.mean())
+        return m, m, m
     return np.percentile(v, 25), np.median(v), np.percentile(v, 75)
 
 
@@ -47,7 +54,8 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
         for k, (label, rs) in enumerate(sorted(lines.items())):
             pts = []
             for x in xs:
-                b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs if r[X_KEY] == x])
+                b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs if r[X_KEY] == x],
+                          fraction=metric in FRACTIONS)
                 if b is not None:
                     pts.append((x, *b))
             if not pts:

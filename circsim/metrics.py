@@ -19,7 +19,6 @@ from merger.search import angle_diff_deg
 
 from .events import MergeCycle, Observer
 
-
 JUDGE_EPS_DEG = 1e-9
 
 

@@ -69,10 +69,18 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
     m.add_argument("--force", action="store_true", help="write the best hypothesis even if verification rejects it")
     add_merge_options(m)
-    d = sub.add_parser("demo", help="generate a scene, three robots' partial maps, and merge them")
+    d = sub.add_parser("demo", help="three robots' partial maps of a generated scene (or of a saved map, "
+                                     "--real), saved and merged")
     d.add_argument("-o", "--output", type=Path, default=Path("out/merger-demo"), help="output folder")
     d.add_argument("--seed", type=int, default=7)
     d.add_argument("--arc", type=float, default=30.0, help="each robot's displacement ±φ in degrees")
+    d.add_argument("--real", type=Path, metavar="MAP.yaml",
+                   help="cut the robots' views out of this saved map (ROS map_server) instead of a generated "
+                        "scene: rays marched through it from the robots' arcs, re-rasterized in each robot's frame")
+    d.add_argument("--real-center", metavar="X,Y", help="with --real: the common center in the map's frame "
+                   "(default: the free point farthest from any obstacle)")
+    d.add_argument("--radius", type=float, help="robots' circle radius in metres (default 1.8; with --real: "
+                   "0.8 × the center's clearance, at most 1.8)")
     add_merge_options(d)
     return p
 
@@ -163,25 +171,52 @@ def cmd_merge(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from .synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
+    from .synthetic import (
+        arc_viewpoints,
+        partial_view,
+        partial_view_of_grid,
+        robot_pose_on_circle,
+        room_scene,
+        widest_free_point,
+        world_to_frame,
+    )
 
     params = params_from(args)
     rng = np.random.default_rng(args.seed)
-    scene = room_scene(rng)
     names, starts = ["Lyon", "Auckland", "Nevers"], [90.0, 210.0, 330.0]
+    if args.real:
+        world = load_map(args.real)
+        free_c, clearance = widest_free_point(world)
+        center = parse_xy(args.real_center, "--real-center") if args.real_center else free_c
+        radius = args.radius or min(0.8 * clearance, 1.8)
+        source = f"{args.real} (center {center[0]:.2f},{center[1]:.2f}, radius {radius:.2f} m)"
+
+        def view(pose, a):
+            g = partial_view_of_grid(world, pose, arc_viewpoints(a, args.arc, radius, center))
+            return g, tuple(float(v) for v in world_to_frame(center, pose))
+    else:
+        scene = room_scene(rng)
+        center, radius = scene.center, args.radius or 1.8
+        source = "a generated room"
+
+        def view(pose, a):
+            return partial_view(scene, pose, arc_viewpoints(a, args.arc, radius), noise=0.002, rng=rng)
+    if radius <= 0:
+        raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
     out = args.output
     maps, poses = [], []
     for name, a in zip(names, starts, strict=True):
-        pose = robot_pose_on_circle(a, 1.8, yaw_offset_deg=rng.uniform(-40, 40))
-        grid, center = partial_view(scene, pose, arc_viewpoints(a, args.arc, 1.8), noise=0.002, rng=rng)
+        pose = robot_pose_on_circle(a, radius, center, yaw_offset_deg=rng.uniform(-40, 40))
+        grid, c = view(pose, a)
         save_map(grid, out / f"{name}.yaml")
-        maps.append(MapInput(name, grid, center))
+        maps.append(MapInput(name, grid, c))
         poses.append(pose)
     truth = {n: math.degrees(p[2] - poses[0][2]) % 360 for n, p in zip(names, poses, strict=True)}
     res = merge_team(maps, params)
     report_merge(res, args.json)
     written = write_merge(res, maps, out / "merged", force=False)
     if not args.json:
+        print(f"views of {source}")
         print("ground truth: " + ", ".join(f"{n} {truth[n]:.1f}°" for n in names[1:]))
         if res.chosen:
             errs = res.chosen.angle_errors_deg(truth)

@@ -118,8 +118,12 @@ def ray_cast(scene: Scene, origin_xy, angles: np.ndarray, range_max: float) -> n
 
 
 def trace(states: np.ndarray, origin_cells: np.ndarray, angles: np.ndarray, ranges: np.ndarray,
-          range_max_cells: float) -> None:
-    """Mark free cells along each ray and the occupied cell at each hit (in place)."""
+          range_max_cells: float, hits: np.ndarray | None = None) -> None:
+    """Mark free cells along each ray and the occupied cell at each hit (in place).
+
+    ``ranges`` (cells) ends each ray (+inf: at ``range_max_cells``); a finite range is a hit unless
+    ``hits`` (bool per ray) says otherwise — then the ray only clears up to it (e.g. it ran into the
+    unknown part of a real map)."""
     h, w = states.shape
     finite = np.isfinite(ranges)
     length = np.where(finite, ranges, range_max_cells)
@@ -131,6 +135,8 @@ def trace(states: np.ndarray, origin_cells: np.ndarray, angles: np.ndarray, rang
     cells = row[seen] * w + col[seen]
     flat = states.ravel()
     flat[cells[flat[cells] != OCCUPIED_S]] = FREE_S
+    if hits is not None:
+        finite = finite & hits
     hit = origin_cells + dirs[finite] * ranges[finite, None]
     hc, hr = np.floor(hit[:, 0]).astype(np.int64), np.floor(hit[:, 1]).astype(np.int64)
     ok = (hc >= 0) & (hc < w) & (hr >= 0) & (hr < h)
@@ -163,6 +169,62 @@ def partial_view(scene: Scene, frame_pose, viewpoints_world, *, resolution: floa
         flat[flip] = np.where(flat[flip] == FREE_S, OCCUPIED_S, FREE_S)
     center = tuple(world_to_frame(scene.center, frame_pose).tolist())
     return OccupancyGrid(states, resolution, tuple(origin.tolist())), center
+
+
+def grid_ray_cast(grid: OccupancyGrid, origin_xy, angles: np.ndarray, range_m: float,
+                  step_cells: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+    """Rays marched through an occupancy grid (e.g. a real saved map), in the grid's frame.
+
+    Returns ``(ranges, hits)``: the distance (m) to the first occupied cell (``hits`` True), or to the
+    first unknown cell or the map's edge (``hits`` False: the map does not say what is there), or +inf
+    when the ray stays in free space for ``range_m``. Sampled every ``step_cells`` of a cell."""
+    res = grid.resolution
+    steps = np.arange(0.0, range_m, step_cells * res)
+    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    pts = np.asarray(origin_xy, float)[None, None, :] + dirs[:, None, :] * steps[None, :, None]
+    col = np.floor((pts[..., 0] - grid.origin[0]) / res).astype(np.int64)
+    row = np.floor((pts[..., 1] - grid.origin[1]) / res).astype(np.int64)
+    h, w = grid.shape
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    state = np.full(col.shape, UNKNOWN_S, np.uint8)
+    state[inside] = grid.states[row[inside], col[inside]]
+    stop = state != FREE_S
+    any_stop = stop.any(axis=1)
+    first = np.argmax(stop, axis=1)
+    ranges = np.where(any_stop, steps[first], np.inf)
+    hits = any_stop & (state[np.arange(len(angles)), first] == OCCUPIED_S)
+    return ranges, hits
+
+
+def partial_view_of_grid(world: OccupancyGrid, frame_pose, viewpoints_world, *, size_m: float = 12.0,
+                         range_m: float = 5.6, beams: int = 720) -> OccupancyGrid:
+    """A local map of a saved map ``world`` (its own frame = the world) in the frame of ``frame_pose``,
+    seen from ``viewpoints_world``: rays are marched through ``world`` (:func:`grid_ray_cast`) and traced
+    into a new grid of the same resolution, square ``size_m`` centred on the frame's origin. Real
+    surfaces (thick, noisy walls, clutter) re-rasterized in another frame: an independent resampling."""
+    res = world.resolution
+    n = int(round(size_m / res))
+    origin = np.array([-n * res / 2.0, -n * res / 2.0])
+    states = np.zeros((n, n), np.uint8)
+    angles = np.linspace(0, 2 * np.pi, beams, endpoint=False)
+    for vp in np.atleast_2d(viewpoints_world):
+        ranges, hits = grid_ray_cast(world, vp, angles, range_m)
+        vp_cells = (world_to_frame(vp, frame_pose) - origin) / res
+        trace(states, vp_cells, angles - frame_pose[2], ranges / res, range_m / res, hits)
+    return OccupancyGrid(states, res, tuple(origin.tolist()))
+
+
+def widest_free_point(grid: OccupancyGrid) -> tuple[tuple[float, float], float]:
+    """The free cell farthest from every non-free cell of ``grid``: its center (x, y) and that clearance
+    (m). A circle of smaller radius about it lies in free space: a place for robots around a center."""
+    free = (grid.states == FREE_S).astype(np.uint8)
+    if not free.any():
+        raise ValueError("the map has no free cell")
+    dist = cv2.distanceTransform(np.pad(free, 1), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)[1:-1, 1:-1]
+    r, c = np.unravel_index(int(dist.argmax()), dist.shape)
+    x = grid.origin[0] + (c + 0.5) * grid.resolution
+    y = grid.origin[1] + (r + 0.5) * grid.resolution
+    return (float(x), float(y)), float(dist[r, c]) * grid.resolution
 
 
 def robot_pose_on_circle(angle_deg: float, radius: float, center=(0.0, 0.0), yaw_offset_deg: float = 0.0):

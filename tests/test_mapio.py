@@ -8,7 +8,7 @@ import pytest
 from merger.grid import OccupancyGrid
 from merger.mapio import MapFileError, load_map, save_map, save_overlay
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-maps" / "turtlebot3_office.yaml"
+REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
 U, F, O = 0, 1, 2
 
 

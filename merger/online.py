@@ -2,7 +2,8 @@
 
 Each robot keeps the newest map of every teammate (and its own), tagged with the sender and a time
 stamp. Every new map triggers a merge cycle over all orders; an accepted hypothesis replaces the kept
-alignment, a rejected cycle never discards a good earlier one.
+alignment, a rejected cycle never discards a good earlier one. A cycle reuses the robot's own earlier
+search of a pair of maps that has not changed since (the searches are deterministic: same result).
 """
 
 from __future__ import annotations
@@ -43,6 +44,8 @@ class TeamMerger:
     current: TeamMergeResult | None = None
     current_stamp: float | None = None
     cycles: int = 0
+    reuse: bool = True  # reuse the pair alignment of two unchanged maps from the previous cycle
+    _pairs: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self.team = tuple(self.team)
@@ -68,13 +71,13 @@ class TeamMerger:
     def inputs(self) -> list[MapInput]:
         """The held maps, own map first, then teammates in team order."""
         names = [self.self_name] + [n for n in self.team if n != self.self_name and n in self.maps]
-        return [MapInput(n, self.maps[n].grid, self.maps[n].center) for n in names]
+        return [MapInput(n, self.maps[n].grid, self.maps[n].center, self.maps[n].stamp) for n in names]
 
     def cycle(self, now: float | None = None) -> TeamMergeResult:
         """Run a merge cycle over the held maps; keep its alignment if it is accepted."""
         if not self.ready():
             raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
-        result = merge_team(self.inputs(), self.params)
+        result = merge_team(self.inputs(), self.params, reuse=self._pairs if self.reuse else None)
         self.cycles += 1
         if result.accepted:
             self.current = result

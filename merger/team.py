@@ -55,11 +55,16 @@ class MergeParams:
 
 @dataclass(frozen=True, eq=False)
 class MapInput:
-    """A map to merge: its owner's name, the grid (in the owner's frame) and the center in that frame."""
+    """A map to merge: its owner's name, the grid (in the owner's frame) and the center in that frame.
+
+    ``version`` (optional, hashable; e.g. the map message's stamp) identifies this grid and center among
+    the owner's maps: with versions, :func:`merge_team` can reuse a pair alignment of unchanged maps
+    from an earlier cycle (its ``reuse`` argument)."""
 
     name: str
     grid: OccupancyGrid
     center: tuple[float, float]
+    version: object = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,16 +142,34 @@ def merge_orders(n: int) -> list[tuple[int, ...]]:
     return [(a, b, *[k for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
 
 
-def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams):
-    """Search the rotations of one order; returns θ onto map 0 per map index and the search steps."""
+def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
+    """What the search of ``mov`` onto ``ref`` depends on (None: the maps carry no version)."""
+    if ref.version is None or mov.version is None:
+        return None
+    return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
+            params.roi_m, params.measure, params.method)
+
+
+def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
+                reuse: dict | None = None):
+    """Search the rotations of one order; returns θ onto map 0 per map index and the search steps.
+
+    ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
+    when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
+    alignment is the one the search would return)."""
     first = maps[order[0]]
     sup = first.grid
     theta_first = {order[0]: 0.0}
     steps = []
     for k in order[1:]:
         m = maps[k]
-        al = search(RotationProblem(sup, m.grid, first.center, m.center, params.roi_m, params.measure),
-                    params.method)
+        key = _pair_key(first, m, params) if reuse is not None and k == order[1] else None
+        al = reuse.get(key) if key is not None else None
+        if al is None:
+            al = search(RotationProblem(sup, m.grid, first.center, m.center, params.roi_m, params.measure),
+                        params.method)
+            if key is not None:
+                reuse[key] = al
         theta_first[k] = al.theta_deg
         steps.append((m.name, al))
         if k != order[-1]:
@@ -167,8 +190,9 @@ def place_on_frame0(maps: list[MapInput], theta0: dict[int, float]) -> list[Occu
                                      for i, m in enumerate(maps) if i]
 
 
-def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams):
-    theta0, steps = align_order(maps, order, params)
+def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
+                   reuse: dict | None = None):
+    theta0, steps = align_order(maps, order, params, reuse)
     layers = place_on_frame0(maps, theta0)
     checks: dict[str, Verification] = {}
     if params.verification == "whole_map":
@@ -204,13 +228,21 @@ def _map_orders(fn, orders):
     return list(pool.map(fn, orders))
 
 
-def merge_team(maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:
+def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
+               reuse: dict | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
 
     Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
+    ``reuse`` (a dict kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): pair
+    alignments of maps that carry a ``version`` are reused while both maps are unchanged; after the
+    cycle it holds only this cycle's pairs. The result is the same as without it.
     """
     t0 = time.perf_counter()
-    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params), merge_orders(len(maps)))
+    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params, reuse), merge_orders(len(maps)))
+    if reuse is not None:
+        live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in merge_orders(len(maps))}
+        for key in [k for k in reuse if k not in live]:
+            del reuse[key]
     accepted = [(r, lay) for r, lay in evaluated if r.accepted]
     chosen, merged, layers = None, None, {}
     if accepted:

@@ -56,6 +56,30 @@ def test_same_scenario_and_seed_give_identical_metrics():
     assert c["params"] == a["params"] and c["seed"] == 99
 
 
+def test_reusing_unchanged_pair_alignments_changes_no_result():
+    """Each robot reuses its own search of two unchanged maps (merger.online.TeamMerger.reuse); every
+    merge cycle's evidence is the same as with every search done from scratch."""
+    def run(reuse):
+        cycles = []
+
+        class Collect(Observer):
+            def on_merge_cycle(self, c):
+                cycles.append((c.t, c.robot, c.result.to_dict()["orders"], c.correct, c.first_correct))
+
+        sim = Simulation(scene("scene1", "duration_s=8", "center_error.magnitude_m=0.05"), [Collect()])
+        for r in sim.robots.values():
+            r.merger.reuse = reuse
+        d = sim.run().to_dict()
+        for k in ("wall_s", "realtime_factor", "merge_cycle_ms"):
+            d.pop(k)
+        return d, cycles
+
+    (a, ca), (b, cb) = run(True), run(False)
+    assert a == b
+    assert len(ca) == len(cb) > 10
+    assert ca == cb
+
+
 def test_interrupted_run_keeps_what_it_measured():
     class CtrlC(Observer):
         ended = None

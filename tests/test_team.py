@@ -63,3 +63,53 @@ def test_online_state_keeps_last_accepted_alignment(team_views):
     assert res2 is not None and not res2.accepted
     assert tm.current is res and tm.cycles == 2
     assert abs(angle_diff_deg(tm.current.chosen.theta_deg["Nevers"], truth["Nevers"])) <= 1.0
+
+
+def _same_result(a, b):
+    assert [o.to_dict() for o in a.orders] == [o.to_dict() for o in b.orders]
+    assert (a.chosen is None) == (b.chosen is None)
+    if a.merged is not None:
+        assert np.array_equal(a.merged.states, b.merged.states)
+
+
+def test_online_cycles_reuse_the_search_of_an_unchanged_pair_with_the_same_result(monkeypatch):
+    """A cycle after one map changed searches 5 of 6 alignments: the pair of the two unchanged maps is
+    reused from the previous cycle; every figure equals a cycle computed from scratch."""
+    import merger.team as team
+    from tests.conftest import three_views
+
+    _, names, maps, _ = three_views(3)
+    _, _, maps_later, _ = three_views(3, arc=25.0)  # the same robots, having seen more
+    calls = []
+    real_search = team.search
+    monkeypatch.setattr(team, "search", lambda *a, **k: calls.append(1) or real_search(*a, **k))
+    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0))
+    for n, (g, c) in zip(names, maps, strict=True):
+        tm.receive(MapMessage(n, 1.0, g, c))
+    first = tm.cycle()
+    assert len(calls) == 6
+    calls.clear()
+    tm.receive(MapMessage("Lyon", 2.0, *maps_later[0]))  # only Lyon's map changed
+    second = tm.cycle()
+    assert len(calls) == 5  # Auckland/Nevers pair reused
+    auck_nev = [o for o in second.orders if o.order[:2] == ("Auckland", "Nevers")][0]
+    assert auck_nev.steps[0][1] is [o for o in first.orders if o.order[:2] == ("Auckland", "Nevers")][0].steps[0][1]
+    scratch = merge_team(tm.inputs(), tm.params)
+    _same_result(second, scratch)
+    # a new center for the same stamp is a different problem: both pairs with Nevers are searched again,
+    # only the unchanged Lyon/Auckland pair is reused
+    calls.clear()
+    g, c = maps[2]
+    tm.maps["Nevers"] = MapMessage("Nevers", 1.0, g, (c[0] + 0.3, c[1]))
+    third = tm.cycle()
+    assert len(calls) == 5
+    _same_result(third, merge_team(tm.inputs(), tm.params))
+    assert len(tm._pairs) == 3  # only the current pairs are kept
+
+
+def test_merge_team_without_versions_never_reuses(team_views):
+    _, names, maps, _ = team_views
+    inputs = [MapInput(n, g, c) for n, (g, c) in zip(names, maps, strict=True)]
+    reuse = {}
+    merge_team(inputs, MergeParams(roi_m=8.0), reuse=reuse)
+    assert reuse == {}

@@ -15,13 +15,13 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
       robots/<robot>/circle                 LineStrips3D, the circle it drives (static)
       robots/<robot>/pose                   Transform3D: true pose in W, every tick (+ static arrow and body)
       robots/<robot>/scan                   Points3D: laser returns in W, at ``scan_log_hz``
-      robots/<robot>/rays                   LineStrips3D: every 4th beam, at every ``rays_every``-th scan
+      robots/<robot>/rays                   LineStrips3D: every 12th beam, at every ``rays_every``-th scan
       robots/<robot>/map                    Transform3D: M_i in W (static); everything below is in M_i
-      robots/<robot>/map/local              GridMap: its SLAM map at every publication
+      robots/<robot>/map/local              GridMap: its SLAM map at every publication (cropped*)
       robots/<robot>/map/slam_pose          Transform3D: SLAM pose estimate, every tick (+ static arrow)
       robots/<robot>/map/center_given       Points3D: the center it was given, labelled with its error
-      robots/<robot>/map/merged             GridMap: its merged map when it accepts a merge
-    /merge/<robot>/overlay                  Image: the thesis colour overlay of the aligned maps
+      robots/<robot>/map/merged             GridMap: its merged map when it accepts a merge (cropped*)
+    /merge/<robot>/overlay                  Image: the thesis colour overlay of the aligned maps (cropped*)
     /plots/<robot>/omega                    Scalars: score (ω̃ by default) of every alignment step of every order
     /plots/<robot>/nu                       Scalars: ν of the cycle's top hypothesis per pair, and ν_min
     /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
@@ -29,6 +29,8 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
     /plots/<robot>/cycle_ms                 Scalars: merge cycle wall time
     /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
     /run/scenario, /run/metrics             TextDocument (static): the scenario and the final metrics JSON
+
+(*) cropped to the known cells plus 1 m (:func:`known_window`); a GridMap's translation is the crop's corner.
 
 A plot is one entity with one series per value (names and colours in a static ``SeriesLines``), so a
 merge cycle costs one ``rr.log`` per plot.
@@ -73,9 +75,9 @@ from merger.overlay import colours_for, overlay_rgb
 from .events import MergeCycle, Observer, RobotTick
 
 APP_ID = "circsim"
-RAY_BEAM_STRIDE = 4  # rays: one beam in four keeps the fan readable
+RAY_BEAM_STRIDE = 12  # rays: one beam in twelve keeps the fan readable (seen in the viewer)
+CROP_MARGIN_CELLS = 20  # logged maps and overlays: known cells plus 1 m at 5 cm
 SCAN_Z, MAP_Z = 0.03, -0.02  # scans above the maps; local maps stacked below z = 0 so they do not z-fight
-LOCAL_MAP_OPACITY_IN_WORLD = 0.35
 VIEWER_PORT = 9876  # gRPC port of the viewer that ``spawn=True`` starts (rerun's default)
 FLUSH_TIMEOUT_S = 30.0
 POSE_BATCH_S = 1.0  # simulated seconds of poses sent at once (a live viewer lags by as much)
@@ -293,7 +295,7 @@ class RerunRecorder(Observer):
         rec, sc = self.rec, sim.scenario
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         walls, pillars, objects = _split_geometry(sc, sim.world.geometry())
-        rec.log("world/walls", rr.LineStrips3D(walls, colors=[(220, 220, 220)], radii=0.02), static=True)
+        rec.log("world/walls", rr.LineStrips3D(walls, colors=[(120, 120, 120)], radii=0.03), static=True)
         rec.log("world/pillars", rr.LineStrips3D(pillars, colors=[(255, 140, 0)], radii=0.015), static=True)
         rec.log("world/objects", rr.LineStrips3D(objects, colors=[(0, 200, 255)], radii=0.01), static=True)
         cx, cy = sim.center_world
@@ -364,7 +366,9 @@ class RerunRecorder(Observer):
         self.merged_next_s[n] = now + self.merged_period_s
         self.rec.log(f"world/robots/{_part(n)}/map/merged", _grid_map(res.merged, 0.0))
         names = [n] + [k for k in res.layers if k != n]
-        rgb = overlay_fast([res.layers[k].states for k in names], names)
+        layers = [res.layers[k].states for k in names]
+        rs, cs = known_window(layers)
+        rgb = overlay_fast([st[rs, cs] for st in layers], names)
         self.rec.log(f"merge/{_part(n)}/overlay", rr.Image(np.ascontiguousarray(np.flipud(rgb))))
 
     def _flush_poses(self) -> None:
@@ -397,10 +401,10 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
     robots = [(n, _part(n)) for n in names]
     world = rrb.Spatial3DView(
         name="World (top-down, y up)", origin="/world",
-        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/merged" for p in parts]],
-        eye_controls=_top_down(cx, cy, 11.0),
-        overrides={f"/world/robots/{p}/map/local": rr.GridMap.from_fields(opacity=LOCAL_MAP_OPACITY_IN_WORLD)
-                   for p in parts})
+        # the maps have views of their own: drawn here (opaque in the 0.41 web viewer, whatever the
+        # opacity) they hid the world under three rotated rectangles of unknown cells
+        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/{m}" for p in parts for m in ("merged", "local")]],
+        eye_controls=_top_down(cx, cy, 11.0))
 
     def map_view(n, p, what, title):
         gx, gy = centers_given[n]
@@ -409,7 +413,7 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
             contents=[f"$origin/{what}", "$origin/slam_pose", "$origin/center_given", f"/world/robots/{p}/scan"],
             eye_controls=_top_down(gx, gy, 11.0))
 
-    local_maps = rrb.Horizontal(*[map_view(n, p, "local", "local map (its frame)") for n, p in robots])
+    local_maps = rrb.Horizontal(*[map_view(n, p, "local", "local map") for n, p in robots])
     merged = rrb.Vertical(*[rrb.Tabs(
         rrb.Spatial2DView(name=f"{n}: overlay of aligned maps", origin=f"/merge/{p}"),
         map_view(n, p, "merged", "merged map"), name=n) for n, p in robots])
@@ -427,7 +431,7 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(rrb.Vertical(world, local_maps, row_shares=[3, 2]), merged, right, column_shares=[3, 2, 3]),
         rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="expanded", timeline="sim_time"))
+        rrb.TimePanel(state="collapsed", timeline="sim_time"))
 
 
 def _top_down(x: float, y: float, height: float) -> rrb.EyeControls3D:
@@ -590,13 +594,35 @@ def _transform(x: float, y: float, yaw: float) -> rr.Transform3D:
                           rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=float(yaw)))
 
 
+def known_window(layers: list[np.ndarray], margin: int = CROP_MARGIN_CELLS) -> tuple[slice, slice]:
+    """Rows and columns of the smallest window holding every known cell of ``layers`` (same shape),
+    widened by ``margin`` cells and clipped to the grid; the whole grid when nothing is known.
+
+    Logged maps and overlays are cropped to it: a 16 m map of a 7 m room is mostly unknown, which the
+    viewer draws opaque, and the overlay's room would be a small patch in a grey image."""
+    known = np.zeros(layers[0].shape, bool)
+    for states in layers:
+        known |= states != 0
+    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+    if not rows.size:
+        return slice(0, known.shape[0]), slice(0, known.shape[1])
+    h, w = known.shape
+    return (slice(max(rows[0] - margin, 0), min(rows[-1] + 1 + margin, h)),
+            slice(max(cols[0] - margin, 0), min(cols[-1] + 1 + margin, w)))
+
+
 def _grid_map(grid, z: float) -> rr.GridMap:
-    """A ROS-ordered occupancy grid (row 0 = lowest y) as a GridMap with the rviz colour map."""
-    data = np.ascontiguousarray(np.flipud(grid.to_ros()))  # GridMap draws its first data row at max y
+    """A ROS-ordered occupancy grid (row 0 = lowest y) as a GridMap with the rviz colour map, cropped
+    to its known cells (:func:`known_window`; the translation is the window's corner)."""
+    rs, cs = known_window([grid.states])
+    ros = grid.to_ros()[rs, cs]
+    data = np.ascontiguousarray(np.flipud(ros))  # GridMap draws its first data row at max y
+    x0 = grid.origin[0] + cs.start * grid.resolution
+    y0 = grid.origin[1] + rs.start * grid.resolution
     return rr.GridMap(data=data.view(np.uint8).tobytes(),
-                      format=rr.components.ImageFormat(width=grid.width, height=grid.height, color_model="L",
+                      format=rr.components.ImageFormat(width=ros.shape[1], height=ros.shape[0], color_model="L",
                                                        channel_datatype="U8"),
-                      cell_size=grid.resolution, translation=[grid.origin[0], grid.origin[1], z],
+                      cell_size=grid.resolution, translation=[x0, y0, z],
                       colormap=rr.components.Colormap.RvizMap)
 
 

@@ -63,6 +63,19 @@ def series(rec, entity):
     return out
 
 
+def assert_logged_grid(row, grid):
+    """A logged GridMap is ``grid`` cropped to a window holding all its known cells, placed at the
+    window's corner: same cells at the same world positions, nothing known left out."""
+    ros = ros_grid(row)  # row 0 = lowest y after the flip back
+    assert row["GridMap:cell_size"][0] == pytest.approx(grid.resolution)
+    off = (np.array(row["GridMap:translation"][0][:2]) - np.array(grid.origin)) / grid.resolution
+    c0, r0 = (int(round(v)) for v in off)
+    assert np.allclose(off, (c0, r0), atol=1e-4) and r0 >= 0 and c0 >= 0
+    full = grid.to_ros()
+    np.testing.assert_array_equal(ros, full[r0:r0 + ros.shape[0], c0:c0 + ros.shape[1]])
+    assert np.count_nonzero(ros != -1) == np.count_nonzero(full != -1)
+
+
 def ros_grid(row) -> np.ndarray:
     """The ROS int8 grid of a logged GridMap row (undoing the row flip)."""
     f = row["GridMap:format"][0]
@@ -200,9 +213,7 @@ def test_local_maps_at_each_publication_in_ros_order(fabricated):
         assert len(rows) == len(published) == 2
         for r, (t, grid) in zip(rows, published, strict=True):
             assert r["sim_time"] == pytest.approx(t)
-            np.testing.assert_array_equal(ros_grid(r), grid.to_ros())  # row 0 = lowest y after the flip back
-            assert r["GridMap:translation"][0][:2] == pytest.approx(grid.origin)
-            assert r["GridMap:cell_size"][0] == pytest.approx(grid.resolution)
+            assert_logged_grid(r, grid)
         s = fabricated.sim.start_poses[n]
         frame = rec[f"/world/robots/{n}/map"][0]
         assert frame["static"] and frame["Transform3D:translation"][0][:2] == pytest.approx(s[:2])
@@ -239,13 +250,19 @@ def test_merge_events_plots_and_throttled_merged_maps(fabricated):
     assert [r["sim_time"] for r in merged] == pytest.approx([0.7, 1.0, 2.9])
     assert len(rec["/world/robots/Auckland/map/merged"]) == 1
     last = next(c for c in reversed(accepted) if c.robot == "Lyon")
-    np.testing.assert_array_equal(ros_grid(merged[-1]), last.result.merged.to_ros())
+    assert_logged_grid(merged[-1], last.result.merged)
     # the overlay is the thesis colour image of the aligned maps [self, teammates], in image row order
     ov = rec["/merge/Lyon/overlay"][-1]
     f = ov["Image:format"][0]
     img = np.flipud(ov["Image:buffer"][0].reshape(f["height"], f["width"], 3))
     names = ["Lyon", "Auckland", "Nevers"]
-    np.testing.assert_array_equal(img, overlay_rgb([last.result.layers[k].states for k in names], names))
+    full = overlay_rgb([last.result.layers[k].states for k in names], names)
+    rs, cs = record.known_window([last.result.layers[k].states for k in names])
+    np.testing.assert_array_equal(img, full[rs, cs])
+    # the crop keeps every cell some map knows (every non-grey pixel of the full overlay)
+    grey = np.all(full == (128, 128, 128), axis=2)
+    assert np.count_nonzero(~grey[rs, cs]) == np.count_nonzero(~grey) > 0
+    assert img.shape[0] < full.shape[0] and img.shape[1] < full.shape[1]
     assert "something to note" in texts(rec, "/events/sim")
     assert "finished" in texts(rec, "/events/sim")[-1]
     assert '"interrupted": false' in rec["/run/metrics"][0]["TextDocument:text"][0]

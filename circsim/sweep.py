@@ -281,10 +281,18 @@ def _local(tasks: list[RunTask], workers: int):
     pool.shutdown()
 
 
+DASK_CONNECT_TIMEOUT_S = 15
+
+
 def _dask(tasks: list[RunTask], address: str):
     from distributed import Client, as_completed
 
-    with Client(address) as client:
+    try:
+        client = Client(address, timeout=DASK_CONNECT_TIMEOUT_S)
+    except (OSError, ValueError) as e:  # unreachable, refused, timed out, malformed address
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise SweepError(f"--dask {address}: cannot reach a dask scheduler there ({msg})") from None
+    with client:
         futures = {client.submit(run_one, t, pure=False): t for t in tasks}
         try:
             for f in as_completed(list(futures)):

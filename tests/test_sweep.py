@@ -125,3 +125,16 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     err = json.loads((tmp_path / ERRORS_JSONL).read_text())
     assert err["run_key"] == "broken-key" and "speed_mps" in err["error"]
     assert [r["run_key"] for r in read_rows(tmp_path / RUNS_JSONL)] == [good.key]
+
+
+@pytest.mark.parametrize("address", ["tcp://127.0.0.1:9", "notaurl"])
+def test_cli_sweep_unreachable_dask_scheduler_is_a_one_line_error(tmp_path, capsys, monkeypatch, address):
+    pytest.importorskip("distributed")
+    import circsim.sweep as sweep
+
+    monkeypatch.setattr(sweep, "DASK_CONNECT_TIMEOUT_S", 1)
+    args = ["sweep", "scene1", "--grid", "center_error=0", "--seeds", "1", "--out", str(tmp_path / "sw"),
+            "--quiet", "--dask", address, *[x for s in SETS for x in ("--set", s)]]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("circsim: error: --dask ") and address in err and "scheduler" in err

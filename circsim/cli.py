@@ -117,32 +117,47 @@ def summary(res) -> str:
     return "\n".join(lines)
 
 
+def _writable(path: Path, what: str) -> None:
+    """Fail before the run, in one line, if ``path`` cannot be written (its folder is made)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "ab"):
+            pass
+    except OSError as e:
+        raise UsageError(f"{path}: cannot write the {what} here ({e.strerror or e})") from None
+
+
 def cmd_run(args) -> int:
     from .sim import Simulation
 
     sc = load_with_overrides(args.scenario, args.seed, args.set)
     rrd = args.rrd or (Path(sc.output.rrd) if sc.output.rrd else None)
     json_out = args.json or (Path(sc.output.json) if sc.output.json else None)
+    if rrd:
+        _writable(rrd, "recording")
+    if json_out:
+        _writable(json_out, "metrics JSON")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
     if rrd or args.spawn:
         from .record import RerunRecorder
 
-        if rrd:
-            rrd.parent.mkdir(parents=True, exist_ok=True)
         observers.append(RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn,
                                        scan_log_hz=sc.output.scan_log_hz))
-    if json_out:
-        json_out.parent.mkdir(parents=True, exist_ok=True)
     res = Simulation(sc, observers).run()
     if rrd:
         res.outputs["rrd"] = str(rrd)
     if json_out:
         res.outputs["json"] = str(json_out)
-        json_out.write_text(json.dumps(res.to_dict(), indent=2))
-    print(summary(res))
+    print(summary(res))  # first: whatever happens to the files, the figures are on screen
     if rrd:
         print(f"recording: {rrd}   (view it: circsim view {rrd})")
     if json_out:
+        try:
+            json_out.write_text(json.dumps(res.to_dict(), indent=2))
+        except OSError as e:
+            print(f"circsim: error: {json_out}: cannot write the metrics JSON ({e.strerror or e}); "
+                  f"the run's figures are above", file=sys.stderr)
+            return 2
         print(f"metrics:   {json_out}")
     return 130 if res.interrupted else 0
 

@@ -349,6 +349,8 @@ def _robots(v) -> RobotsSpec:
     n = len(names)
     if len(set(names)) != n:
         raise bad("robots.names", "unique robot names", list(names))
+    if n < 2:
+        raise bad("robots.names", "at least two robots (merging needs two maps)", list(names))
     if "names" in r and n != 3 and "start_angles_deg" not in r:
         r["start_angles_deg"] = tuple(90.0 + k * 360.0 / n for k in range(n))
     r.setdefault("yaw_offsets_deg", (0.0,) * n)

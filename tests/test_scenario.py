@@ -138,6 +138,7 @@ def test_room_from_wall_segments(tmp_path):
     ("robots: {start_angles_deg: [0, 120]}",
      "scene.yaml: robots.start_angles_deg: expected a list of 3 numbers (one per robot), got [0.0, 120.0]"),
     ("robots: {names: [A, A]}", "scene.yaml: robots.names: expected unique robot names"),
+    ("robots: {names: [A]}", "scene.yaml: robots.names: expected at least two robots"),
     ("robots: {motion: wander}", "scene.yaml: robots.motion: expected one of 'online', 'offline', got 'wander'"),
     ("center_error: {per_robot: {Bob: [0.1, 0]}}",
      "scene.yaml: center_error.per_robot.Bob: expected a robot name (one of Lyon, Auckland, Nevers)"),

@@ -43,6 +43,22 @@ def test_online_scene_merges_correctly_for_every_robot(name):
                 assert err <= sc.merger.correct_tol_deg, (c.t, c.robot, j, th, true)
 
 
+def test_four_robots_merge_in_all_six_orders():
+    """The bench and the team merge are general in N: four robots, N(N−1)/2 = 6 orders per cycle."""
+    sc = scene("scene1", "robots.names=[A,B,C,D]", "robots.start_angles_deg=[0,90,180,270]", "duration_s=6")
+    orders = set()
+
+    class Collect(Observer):
+        def on_merge_cycle(self, c):
+            orders.add(len(c.result.orders))
+
+    sim = Simulation(sc, [Collect()])
+    res = sim.run().to_dict()
+    assert orders == {6}
+    assert res["false_merges"] == 0 and set(res["robots"]) == {"A", "B", "C", "D"}
+    assert all(r["first_merge_s"] is not None for r in res["robots"].values())
+
+
 def test_same_scenario_and_seed_give_identical_metrics():
     def metrics():
         d = Simulation(scene("scene2", "duration_s=8")).run().to_dict()

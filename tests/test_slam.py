@@ -25,10 +25,10 @@ def empty_scan(n=3):
 def tour_map(name="scene1", robot="Lyon", *, config=EXACT, laser_cfg=None, seed=0, others=False, step_deg=3.0):
     """The robot's grid after one tour of its circle (other robots removed unless ``others``)."""
     sc = load_scenario(bundled_scenarios()[name])
-    if not others:
-        angle = sc.robots.start_angles_deg[sc.robots.names.index(robot)]
-        sc = sc.with_overrides([f"robots.names=[{robot}]", f"robots.start_angles_deg=[{angle:g}]"])
     world = World.from_scenario(sc)
+    if not others:  # park the teammates 1 km away, far out of the laser's range
+        for k, other in enumerate(n for n in sc.robots.names if n != robot):
+            world.set_robot_pose(other, 1000.0 + 10.0 * k, 1000.0, 0.0)
     traj = trajectories(sc)[robot]
     laser_cfg = laser_cfg or LaserConfig(noise_std_m=0.0)
     rng = np.random.default_rng(seed)

@@ -103,6 +103,9 @@ class Simulation:
         self.observers = [MetricsObserver(self.result, self.arc_deg), *observers]
 
     def arc_deg(self, robot: str, t: float) -> float:
+        """Degrees of its circle the robot has travelled by ``t`` (0 unless it drives: motion online)."""
+        if self.scenario.robots.motion != "online":
+            return 0.0
         return self.robots[robot].traj.arc_travelled_deg(t)
 
     def _emit(self, hook: str, *args) -> None:
@@ -122,7 +125,7 @@ class Simulation:
             s = laser_scan(self.world, n, poses[n], r.laser_rng, config=sc.laser, stamp=t)
             est = r.slam.update(poses[n], s)
             ticks.append(RobotTick(n, tuple(poses[n]), tuple(est), self._est_in_world(n, est),
-                                   r.traj.arc_travelled_deg(t), s))
+                                   self.arc_deg(n, t), s))
         self._emit("on_tick", t, k, ticks)
         self._exchange(t)
         for r in self.robots.values():

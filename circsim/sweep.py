@@ -22,6 +22,7 @@ cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``,
 from __future__ import annotations
 
 import csv
+import hashlib
 import itertools
 import json
 import math
@@ -87,6 +88,8 @@ def parse_grid(specs: Iterable[str]) -> list[Axis]:
         if not sep or not key or not text.strip():
             raise SweepError(f"--grid {spec!r}: expected KEY.PATH=V1,V2,... (e.g. center_error=0,0.1,0.2)")
         key = ALIASES.get(key, key)
+        if key == "seed":
+            raise SweepError(f"--grid {spec!r}: seeds are not a grid axis; use --seed BASE and --seeds N")
         values, texts = [], []
         for item in text.split(","):
             texts.append(item.strip())
@@ -113,9 +116,17 @@ def _check(base: Scenario, combo, label: str) -> None:
         raise SweepError(f"{base.source}: {label}: {msg}") from None
 
 
-def run_key(scenario: str, grid, seed: int) -> str:
-    return json.dumps({"scenario": scenario, "grid": {k: _norm(v) for k, v in grid}, "seed": int(seed)},
-                      sort_keys=True)
+def base_digest(raw: dict) -> str:
+    """A short digest of the base scenario (after ``--set``), its seed left out (runs carry their own)."""
+    data = {k: v for k, v in raw.items() if k != "seed"}
+    return hashlib.sha1(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def run_key(scenario: str, grid, seed: int, base: str = "") -> str:
+    """What identifies a run for ``--resume``: scenario name, base scenario digest (so a changed ``--set``
+    or scenario file is not mistaken for a finished run), grid values and seed."""
+    return json.dumps({"scenario": scenario, "base": base, "grid": {k: _norm(v) for k, v in grid},
+                       "seed": int(seed)}, sort_keys=True)
 
 
 def plan(base: Scenario, axes: list[Axis], seeds: int) -> list[RunTask]:
@@ -128,8 +139,9 @@ def plan(base: Scenario, axes: list[Axis], seeds: int) -> list[RunTask]:
     combos = list(itertools.product(*[[(a.key, v) for v in a.values] for a in axes]))
     for combo in combos:  # then every combination (keys that constrain each other)
         _check(base, combo, "--grid " + " ".join(f"{k}={json.dumps(v)}" for k, v in combo))
-    base_seed = int(base.seed)
-    return [RunTask(base.raw, base.source, combo, base_seed + i, run_key(base.name, combo, base_seed + i))
+    base_seed, digest = int(base.seed), base_digest(base.raw)
+    return [RunTask(base.raw, base.source, combo, base_seed + i,
+                    run_key(base.name, combo, base_seed + i, digest))
             for combo in combos for i in range(seeds)]
 
 
@@ -233,6 +245,7 @@ def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: boo
                          "or --overwrite to start again")
     if overwrite and not resume:
         path.write_text("")
+        (out / ERRORS_JSONL).unlink(missing_ok=True)  # the old sweep's failures are not this one's
         done = set()
     todo = [t for t in tasks if t.key not in done]
     return todo, len(tasks) - len(todo)

@@ -139,3 +139,18 @@ def test_cli_user_errors_exit_2_one_line(args, needle, capsys):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and needle in err and "Traceback" not in err
+
+
+def test_offline_motion_travels_no_arc():
+    """motion: offline keeps every robot at its start: a first merge happens at 0° of arc."""
+    sc = scene("scene1", "robots.motion=offline", "duration_s=6")
+    arcs = []
+
+    class Collect(Observer):
+        def on_tick(self, t, step, ticks):
+            arcs.extend(k.arc_deg for k in ticks)
+
+    res = Simulation(sc, [Collect()]).run().to_dict()
+    assert arcs and set(arcs) == {0.0}
+    merged = [r for r in res["robots"].values() if r["first_merge_s"] is not None]
+    assert merged and all(r["first_merge_arc_deg"] == 0.0 for r in merged)

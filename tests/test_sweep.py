@@ -48,6 +48,7 @@ def test_grid_aliases_values_and_plan():
     ("network.latency_s=-1", ["network.latency_s", ">= 0"]),
     ("center_error", ["KEY.PATH=V1,V2"]),
     ("center_error=0,0", ["repeated value"]),
+    ("seed=1,2", ["--seeds"]),
 ])
 def test_bad_grid_is_one_line_exit_2_and_runs_nothing(tmp_path, capsys, grid, words):
     rc = main(["sweep", "scene1", "--grid", grid, "--out", str(tmp_path / "o"), "--quiet"])
@@ -138,3 +139,17 @@ def test_cli_sweep_unreachable_dask_scheduler_is_a_one_line_error(tmp_path, caps
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("circsim: error: --dask ") and address in err and "scheduler" in err
+
+
+def test_a_changed_base_scenario_is_not_resumed_as_finished():
+    """--resume must not take rows of a sweep run with other --set values (or another scenario file)."""
+    base = load_scenario(bundled_scenarios()["scene1"])
+    axes = parse_grid(["center_error=0,0.1"])
+    keys = [t.key for t in plan(base, axes, 2)]
+    assert keys == [t.key for t in plan(base, axes, 2)]  # deterministic
+    changed = [t.key for t in plan(base.with_overrides(["merger.nu_min=0.9"]), axes, 2)]
+    assert not set(keys) & set(changed)
+    reseeded = plan(base.with_overrides(["seed=5"]), axes, 2)
+    digest = {json.loads(k)["base"] for k in keys}
+    assert len(digest) == 1 and {json.loads(t.key)["base"] for t in reseeded} == digest  # seeds are per run
+    assert sorted({t.seed for t in reseeded}) == [5, 6]

@@ -1,9 +1,8 @@
 """Plots of a sweep's rows (matplotlib, Agg): metrics vs center error, one line per other setting.
 
-Each panel shows, per x value, the median over seeds and the interquartile band (the "every robot
-merged" panel: the fraction of runs). Runs in which no
-robot merged have no first-merge figures (the first-merge panels average the robots that merged); the
-"every robot merged" panel shows how many runs did.
+Each panel shows, per x value, the median over seeds and the interquartile band; the "every robot
+merged" panel shows the fraction of runs that did. Runs in which no robot merged have no first-merge
+figures (the first-merge panels average the robots that merged).
 """
 
 from __future__ import annotations

@@ -143,6 +143,21 @@ def trace(states: np.ndarray, origin_cells: np.ndarray, angles: np.ndarray, rang
     flat[hr[ok] * w + hc[ok]] = OCCUPIED_S
 
 
+def _traced_views(cast, frame_pose, viewpoints_world, resolution: float, size_m: float, range_m: float,
+                  beams: int) -> OccupancyGrid:
+    """360° scans of ``beams`` rays from every viewpoint, ``cast(vp, angles) -> (ranges m, hits or
+    None)`` in the world, traced into a square grid of side ``size_m`` centred on the frame's origin."""
+    n = int(round(size_m / resolution))
+    origin = np.array([-n * resolution / 2.0, -n * resolution / 2.0])
+    states = np.zeros((n, n), np.uint8)
+    angles = np.linspace(0, 2 * np.pi, beams, endpoint=False)
+    for vp in np.atleast_2d(viewpoints_world):
+        ranges, hits = cast(vp, angles)
+        vp_cells = (world_to_frame(vp, frame_pose) - origin) / resolution
+        trace(states, vp_cells, angles - frame_pose[2], ranges / resolution, range_m / resolution, hits)
+    return OccupancyGrid(states, resolution, tuple(origin.tolist()))
+
+
 def partial_view(scene: Scene, frame_pose, viewpoints_world, *, resolution: float = 0.05,
                  size_m: float = 12.0, range_m: float = 5.6, beams: int = 720,
                  noise: float = 0.0, rng: np.random.Generator | None = None) -> tuple[OccupancyGrid, tuple]:
@@ -153,14 +168,9 @@ def partial_view(scene: Scene, frame_pose, viewpoints_world, *, resolution: floa
     (square ``size_m`` centred on the frame's origin) and the scene's center in that frame.
     ``noise`` flips that fraction of the known cells to the other known state.
     """
-    n = int(round(size_m / resolution))
-    origin = np.array([-n * resolution / 2.0, -n * resolution / 2.0])
-    states = np.zeros((n, n), np.uint8)
-    angles = np.linspace(0, 2 * np.pi, beams, endpoint=False)
-    for vp in np.atleast_2d(viewpoints_world):
-        ranges = ray_cast(scene, vp, angles, range_m)
-        vp_cells = (world_to_frame(vp, frame_pose) - origin) / resolution
-        trace(states, vp_cells, angles - frame_pose[2], ranges / resolution, range_m / resolution)
+    grid = _traced_views(lambda vp, angles: (ray_cast(scene, vp, angles, range_m), None), frame_pose,
+                         viewpoints_world, resolution, size_m, range_m, beams)
+    states = grid.states
     if noise > 0:
         rng = np.random.default_rng(0) if rng is None else rng
         known = np.flatnonzero(states.ravel() != UNKNOWN_S)
@@ -168,7 +178,7 @@ def partial_view(scene: Scene, frame_pose, viewpoints_world, *, resolution: floa
         flat = states.ravel()
         flat[flip] = np.where(flat[flip] == FREE_S, OCCUPIED_S, FREE_S)
     center = tuple(world_to_frame(scene.center, frame_pose).tolist())
-    return OccupancyGrid(states, resolution, tuple(origin.tolist())), center
+    return grid, center
 
 
 def grid_ray_cast(grid: OccupancyGrid, origin_xy, angles: np.ndarray, range_m: float,
@@ -202,16 +212,8 @@ def partial_view_of_grid(world: OccupancyGrid, frame_pose, viewpoints_world, *, 
     seen from ``viewpoints_world``: rays are marched through ``world`` (:func:`grid_ray_cast`) and traced
     into a new grid of the same resolution, square ``size_m`` centred on the frame's origin. Real
     surfaces (thick, noisy walls, clutter) re-rasterized in another frame: an independent resampling."""
-    res = world.resolution
-    n = int(round(size_m / res))
-    origin = np.array([-n * res / 2.0, -n * res / 2.0])
-    states = np.zeros((n, n), np.uint8)
-    angles = np.linspace(0, 2 * np.pi, beams, endpoint=False)
-    for vp in np.atleast_2d(viewpoints_world):
-        ranges, hits = grid_ray_cast(world, vp, angles, range_m)
-        vp_cells = (world_to_frame(vp, frame_pose) - origin) / res
-        trace(states, vp_cells, angles - frame_pose[2], ranges / res, range_m / res, hits)
-    return OccupancyGrid(states, res, tuple(origin.tolist()))
+    return _traced_views(lambda vp, angles: grid_ray_cast(world, vp, angles, range_m), frame_pose,
+                         viewpoints_world, world.resolution, size_m, range_m, beams)
 
 
 def widest_free_point(grid: OccupancyGrid) -> tuple[tuple[float, float], float]:

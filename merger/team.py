@@ -238,9 +238,10 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     cycle it holds only this cycle's pairs. The result is the same as without it.
     """
     t0 = time.perf_counter()
-    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params, reuse), merge_orders(len(maps)))
-    if reuse is not None:
-        live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in merge_orders(len(maps))}
+    orders = merge_orders(len(maps))
+    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params, reuse), orders)
+    if reuse is not None:  # keep only this cycle's pairs
+        live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
     accepted = [(r, lay) for r, lay in evaluated if r.accepted]

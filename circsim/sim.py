@@ -15,7 +15,10 @@ seed give the same run, and changing e.g. the network does not change the laser 
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -169,15 +172,20 @@ class Simulation:
                                                 res.accepted and not correct))
 
     def run(self) -> RunResult:
+        """Run to ``duration_s``. Ctrl-C stops the run at the end of the current tick (so every observer
+        has seen the same events); a second Ctrl-C interrupts at once."""
         sc = self.scenario
         n_steps = int(math.floor(sc.duration_s / sc.dt_s + 1e-9))
         self._emit("on_start", self)
         t0 = time.perf_counter()
         try:
-            for k in range(n_steps + 1):
-                t = k * sc.dt_s
-                self.step(k, t)
-                self.result.sim_s = t
+            with _sigint_at_tick_boundary() as stop:
+                for k in range(n_steps + 1):
+                    t = k * sc.dt_s
+                    self.step(k, t)
+                    self.result.sim_s = t
+                    if stop():
+                        raise KeyboardInterrupt
         except KeyboardInterrupt:
             self.result.interrupted = True
             self._emit("on_event", self.result.sim_s, "warn", "run interrupted (Ctrl-C)")
@@ -185,6 +193,29 @@ class Simulation:
             self.result.wall_s = time.perf_counter() - t0
         self._emit("on_end", self.result)
         return self.result
+
+
+@contextmanager
+def _sigint_at_tick_boundary():
+    """Within the block, the first SIGINT only sets a flag (read with the yielded callable); the second
+    raises KeyboardInterrupt as usual. Outside the main thread (signals cannot be caught there) the flag
+    is never set and Ctrl-C behaves as Python's default."""
+    pressed = []
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield lambda: False  # someone else owns SIGINT (e.g. a sweep worker ignores it)
+        return
+
+    def handler(signum, frame):
+        if pressed:
+            raise KeyboardInterrupt
+        pressed.append(True)
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(pressed)
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def run_scenario(scenario: Scenario, observers: list[Observer] = ()) -> RunResult:

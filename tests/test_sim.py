@@ -2,6 +2,7 @@
 
 import json
 import math
+import signal
 
 import pytest
 
@@ -111,6 +112,29 @@ def test_interrupted_run_keeps_what_it_measured():
     assert res.interrupted and CtrlC.ended is res
     assert 3.5 <= res.sim_s < 4.1
     assert any(r.maps_published for r in res.robots.values())
+
+
+def test_ctrl_c_stops_at_a_tick_boundary_so_every_observer_sees_the_same_events():
+    """A real SIGINT delivered while the first observer (metrics) handles a merge cycle must not hide that
+    cycle from the observers after it (the recorder): the run stops after the tick."""
+    class PressCtrlC(Observer):  # runs right after metrics counted the cycle, before Count sees it
+        def on_merge_cycle(self, cycle):
+            if cycle.result.accepted:
+                signal.raise_signal(signal.SIGINT)
+
+    class Count(Observer):
+        accepted = 0
+        end_t = None
+
+        def on_merge_cycle(self, cycle):
+            Count.accepted += cycle.result.accepted
+            Count.end_t = cycle.t
+
+    before = signal.getsignal(signal.SIGINT)
+    res = Simulation(scene("scene1", "duration_s=20"), [PressCtrlC(), Count()]).run()
+    assert signal.getsignal(signal.SIGINT) is before
+    assert res.interrupted and res.sim_s == pytest.approx(Count.end_t)
+    assert sum(r.accepted for r in res.robots.values()) == Count.accepted > 0
 
 
 def test_cli_run_json_has_every_field(tmp_path, capsys):

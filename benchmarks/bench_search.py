@@ -33,7 +33,7 @@ from merger.fast import fast_search  # noqa: E402
 from merger.polar import clear_cache  # noqa: E402
 from merger.search import RotationProblem, reference_search  # noqa: E402
 from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene  # noqa: E402
-from merger.team import MERGE_THREADS, MapInput, MergeParams, merge_team  # noqa: E402
+from merger.team import MapInput, MergeParams, merge_team  # noqa: E402
 
 RES = 0.05
 ROI_CELLS = (128, 256, 400, 800)
@@ -140,7 +140,7 @@ def main(argv=None) -> int:
     print(f"{'cycle':>16} {fmt_ms(t_ref):>12} {fmt_ms(t_fast)} {ratio:>7.0f}×  {'yes' if same else 'NO':>12}"
           f"  ({len(t_ref)}/{len(t_fast)})")
     print(f"fast cycle: min {min(t_fast):.1f} ms, p90 {np.percentile(t_fast, 90):.1f} ms; CPU time (all threads, "
-          f"process_time) median {statistics.median(cpu_fast):.1f} ms; merge threads {MERGE_THREADS}")
+          f"process_time) median {statistics.median(cpu_fast):.1f} ms")
     load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",) * 3
     print(f"load at the end {' '.join(f'{x:.2f}' if isinstance(x, float) else x for x in load)}")
     print("targets: ≥ 20× at ROI 256, ≥ 30× at ROI 800, fast merge cycle ≤ 15 ms")

@@ -180,16 +180,9 @@ def fast_search(problem: RotationProblem) -> Alignment:
     opposite = np.abs(angle_diff_deg(np.arange(360.0), top + 180.0)) <= OPPOSITE_DEG
     starts += [i for i in _candidates(approx, opposite, 1, 0)[:1] if i not in starts]
     # One batch for the usual case: the refinement around the best approximate peak (it holds the peak's
-    # ±1° coarse neighbours), the runner-up's likely places for any θ within ±1° of that peak (the far
-    # zone's edges and its best approximate peaks), and bounds around the other candidates.
-    angles = np.arange(360) * (360.0 / 360)
-    far_guess = np.abs(angle_diff_deg(angles, float(top))) >= RUNNER_UP_MIN_SEPARATION_DEG + 1
-    ru_peak = _candidates(approx, far_guess, 1, 1)[:1]
-    edges = [top + sign * d for sign in (-1, 1) for d in (10, 11, 12)]  # the zone's edges, and one beyond
-    ev.prepare(exact=[float(a) for a in fine_angles(float(top))] + [float(i % 360) for i in edges]
-               + [float((i + d) % 360) for i in ru_peak for d in (-1, 0, 1)],
-               bounds=[float((s + d) % 360) for s in starts[1:] for d in range(-WINDOW, WINDOW + 1)]
-               + [float((top + sign * d) % 360) for sign in (-1, 1) for d in range(8, 14)])
+    # ±1° coarse neighbours) and bounds around the other candidates.
+    ev.prepare(exact=[float(a) for a in fine_angles(float(top))],
+               bounds=[float((s + d) % 360) for s in starts[1:] for d in range(-WINDOW, WINDOW + 1)])
     coarse.need([top - 1, top, top + 1])  # from the refinement batch, unless they wrap around 0°
     best = coarse.best_of(starts)
     fine = [float(a) for a in fine_angles(float(best))]
@@ -197,19 +190,29 @@ def fast_search(problem: RotationProblem) -> Alignment:
     k = int(np.argmax(values))  # the first maximum, as the reference's strict '>' scan
     theta = wrap_deg(fine[k])
     sim = ev.similarity(fine[k])
-    # runner-up: the best coarse angle at least 10° from θ (exact values, climbing within that zone)
-    far = np.abs(angle_diff_deg(angles, theta)) >= RUNNER_UP_MIN_SEPARATION_DEG
-    ru_deg, ru_score = float("nan"), float("nan")
-    if far.any():
-        edges = [i for i in np.flatnonzero(far).tolist() if not (far[i - 1] and far[(i + 1) % 360])]
-        cands = _candidates(approx, far, RUNNER_UP_CANDIDATES, RUNNER_UP_HIGH)
-        r = coarse.best_of(list(dict.fromkeys(edges + cands)), far, RUNNER_UP_STEPS, window=1)
-        ru_deg, ru_score = float(angles[r]), coarse.values[r]
     profile = approx.copy()
     for i, v in coarse.values.items():
         profile[i] = v
     return Alignment(theta, sim.value, sim.counts, problem.measure, "fast", problem.roi_m, profile,
-                     ru_deg, ru_score)
+                     lambda: _runner_up(coarse, approx, theta))
+
+
+def _runner_up(coarse: _Coarse, approx: np.ndarray, theta: float) -> tuple[float, float]:
+    """The best coarse angle at least 10° from θ: exact values, climbing within that zone from its edges
+    (the main peak's flanks) and from the approximate profile's best far peaks."""
+    angles = np.arange(360) * (360.0 / 360)
+    far = np.abs(angle_diff_deg(angles, theta)) >= RUNNER_UP_MIN_SEPARATION_DEG
+    if not far.any():
+        return float("nan"), float("nan")
+    edges = [i for i in np.flatnonzero(far).tolist() if not (far[i - 1] and far[(i + 1) % 360])]
+    cands = _candidates(approx, far, RUNNER_UP_CANDIDATES, RUNNER_UP_HIGH)
+    starts = list(dict.fromkeys(edges + cands))
+    # one batch: the starts and their neighbours exactly (the far peaks), bounds one step further out
+    coarse.ev.prepare(exact=[float((i + d) % 360) for i in cands[:1] for d in (-1, 0, 1)]
+                      + [float(i % 360) for i in edges],
+                      bounds=[float((i + d) % 360) for i in starts for d in (-2, -1, 1, 2)])
+    r = coarse.best_of(starts, far, RUNNER_UP_STEPS, window=1)
+    return float(angles[r]), coarse.values[r]
 
 
 register_method("fast", fast_search)

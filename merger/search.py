@@ -9,6 +9,7 @@ the yardstick for faster methods. Methods are pluggable: a method is a callable
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -68,6 +69,10 @@ class Alignment:
     counts : agr̃, dis (and free/free) at ``theta_deg`` on the ROI.
     profile : coarse scores at 0°, 1°, ..., 359°.
     runner_up_deg, runner_up_score : best coarse angle at least 10° away from ``theta_deg``.
+
+    A search may hand over the runner-up as a callable (the last argument, ``_runner_up``) that is
+    called once, on first access: a merge cycle never reads it, so it does not pay for it. Pickling
+    resolves it.
     """
 
     theta_deg: float
@@ -77,8 +82,36 @@ class Alignment:
     method: str
     roi_m: float
     profile: np.ndarray = field(repr=False)
-    runner_up_deg: float
-    runner_up_score: float
+    _runner_up: tuple[float, float] | Callable[[], tuple[float, float]] = field(repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_lock", threading.Lock())
+
+    @property
+    def runner_up(self) -> tuple[float, float]:
+        """(runner_up_deg, runner_up_score), computed on first access when the search deferred it."""
+        if callable(self._runner_up):
+            with self._lock:  # two threads may ask at once; the search behind it is not thread-safe
+                if callable(self._runner_up):
+                    object.__setattr__(self, "_runner_up", tuple(float(v) for v in self._runner_up()))
+        return self._runner_up
+
+    def __getstate__(self) -> dict:
+        state = {k: v for k, v in self.__dict__.items() if k != "_lock"}
+        state["_runner_up"] = self.runner_up
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_lock", threading.Lock())
+
+    @property
+    def runner_up_deg(self) -> float:
+        return self.runner_up[0]
+
+    @property
+    def runner_up_score(self) -> float:
+        return self.runner_up[1]
 
     @property
     def margin(self) -> float:
@@ -97,7 +130,9 @@ class Alignment:
 
 def wrap_deg(a):
     """Angle(s) in [0, 360)."""
-    return np.mod(np.round(np.asarray(a, np.float64), 9), 360.0) if np.ndim(a) else float(round(a, 9) % 360.0)
+    if np.ndim(a):
+        return np.mod(np.round(np.mod(np.round(np.asarray(a, np.float64), 9), 360.0), 9), 360.0)
+    return float(round(round(a, 9) % 360.0, 9) % 360.0)  # 360 − 279.3 is 80.69999999999999: round again
 
 
 def angle_diff_deg(a, b):
@@ -141,7 +176,7 @@ def reference_search(problem: RotationProblem) -> Alignment:
     theta = wrap_deg(best[0])
     ru_deg, ru_score = runner_up(coarse, theta)
     return Alignment(theta, best[1].value, best[1].counts, problem.measure, "reference",
-                     problem.roi_m, coarse, ru_deg, ru_score)
+                     problem.roi_m, coarse, (ru_deg, ru_score))
 
 
 SearchMethod = Callable[[RotationProblem], Alignment]

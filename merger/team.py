@@ -13,16 +13,13 @@ orders the highest Σν wins.
 
 from __future__ import annotations
 
-import os
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 from .grid import OccupancyGrid
 from .search import Alignment, RotationProblem, angle_diff_deg, search, wrap_deg
 from .superpose import fuse, superpose
-from .transform import canvas, paste, warp_grid
+from .transform import canvas, footprint, overlap, paste, warp_grid
 from .verify import Verification, pairwise, verify
 
 VERIFICATIONS = ("whole_map", "roi_score")
@@ -150,13 +147,49 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
             params.roi_m, params.measure, params.method)
 
 
+class Warps:
+    """The maps of one merge cycle rotated onto another map's cell lattice, each warp computed once.
+
+    A warp covers only the rotated map's footprint (:func:`merger.transform.footprint`); every cell
+    outside it is unknown. One warp therefore serves every canvas on that lattice (pasting it is exact),
+    and a pair's whole-map ω̃ only needs the cells where the two footprints overlap (unknown cells count
+    in neither agr̃ nor dis). Orders that share a rotation share its warp and its pair checks.
+    """
+
+    def __init__(self, maps: list[MapInput]) -> None:
+        self.maps = maps
+        self._warps: dict[tuple[int, int, float], OccupancyGrid] = {}
+        self._checks: dict[tuple, Verification] = {}
+
+    def get(self, frame: int, k: int, theta: float) -> OccupancyGrid:
+        """Map ``k`` rotated by ``theta`` onto map ``frame``'s lattice (about the maps' centers)."""
+        if k == frame and theta == 0.0:
+            return self.maps[k].grid
+        key = (frame, k, theta)
+        if key not in self._warps:
+            base, m = self.maps[frame], self.maps[k]
+            fp = footprint(base.grid, m.grid, theta, m.center, base.center)
+            self._warps[key] = warp_grid(m.grid, theta, m.center, base.center, fp)
+        return self._warps[key]
+
+    def check(self, i: int, theta_i: float, j: int, theta_j: float, params: MergeParams) -> Verification:
+        """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
+        key = (i, theta_i, j, theta_j)
+        if key not in self._checks:
+            a, b = overlap(self.get(0, i, theta_i), self.get(0, j, theta_j))
+            self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
+                                       label=f"{self.maps[i].name}|{self.maps[j].name}")
+        return self._checks[key]
+
+
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
-                reuse: dict | None = None):
+                reuse: dict | None = None, warps: Warps | None = None):
     """Search the rotations of one order; returns θ onto map 0 per map index and the search steps.
 
     ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
-    alignment is the one the search would return)."""
+    alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`."""
+    warps = Warps(maps) if warps is None else warps
     first = maps[order[0]]
     sup = first.grid
     theta_first = {order[0]: 0.0}
@@ -174,58 +207,45 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
         steps.append((m.name, al))
         if k != order[-1]:
             cv = canvas(sup, [(m.grid, al.theta_deg, m.center)], first.center)
-            sup = OccupancyGrid(superpose(paste(sup, cv).states,
-                                          warp_grid(m.grid, al.theta_deg, m.center, first.center, cv).states),
+            sup = OccupancyGrid(superpose(paste(sup, cv).states, paste(warps.get(order[0], k, al.theta_deg),
+                                                                       cv).states),
                                 cv.resolution, cv.origin)
     # x_first = c_first + R(θ_f0)(x_0 − c_0)  ⇒  θ_0k = θ_fk − θ_f0
     theta0 = {k: wrap_deg(theta_first[k] - theta_first[0]) for k in order}
     return theta0, tuple(steps)
 
 
-def place_on_frame0(maps: list[MapInput], theta0: dict[int, float]) -> list[OccupancyGrid]:
+def place_on_frame0(maps: list[MapInput], theta0: dict[int, float],
+                    warps: Warps | None = None) -> list[OccupancyGrid]:
     """All maps resampled onto one canvas in map 0's frame."""
+    warps = Warps(maps) if warps is None else warps
     base = maps[0]
     cv = canvas(base.grid, [(m.grid, theta0[i], m.center) for i, m in enumerate(maps) if i], base.center)
-    return [paste(base.grid, cv)] + [warp_grid(m.grid, theta0[i], m.center, base.center, cv)
-                                     for i, m in enumerate(maps) if i]
+    return [paste(base.grid, cv)] + [paste(warps.get(0, i, theta0[i]), cv) for i in range(1, len(maps))]
 
 
-def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
-                   reuse: dict | None = None):
-    theta0, steps = align_order(maps, order, params, reuse)
-    layers = place_on_frame0(maps, theta0)
-    checks: dict[str, Verification] = {}
+def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, theta0, steps,
+                  warps: Warps) -> OrderResult:
     if params.verification == "whole_map":
-        for i, j in pairwise(layers):
-            label = f"{maps[i].name}|{maps[j].name}"
-            checks[label] = verify(layers[i].states, layers[j].states, nu_min=params.nu_min,
-                                   min_support=params.min_support, label=label)
+        checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, theta0[i], j, theta0[j], params)
+                  for i, j in pairwise(maps)}
     else:
+        checks = {}
         for name, al in steps:
             ok = al.score >= params.score_min
             checks[name] = Verification(al.score, al.counts, ok, "" if ok else
                                         f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
     failed = [c.reason for c in checks.values() if not c.passed]
-    res = OrderResult(tuple(maps[k].name for k in order), {maps[k].name: theta0[k] for k in order},
-                      steps, checks, not failed, "; ".join(failed))
-    return res, layers
+    return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: theta0[k] for k in order},
+                       steps, checks, not failed, "; ".join(failed))
 
 
-MERGE_THREADS = min(2, os.cpu_count() or 1)  # orders evaluated concurrently (numpy/OpenCV release the GIL)
-_POOL: tuple[int, ThreadPoolExecutor] | None = None  # (owner pid, pool): a forked child makes its own
-_POOL_LOCK = threading.Lock()
-
-
-def _map_orders(fn, orders):
-    """``[fn(o) for o in orders]``, on up to MERGE_THREADS threads (same results, same order)."""
-    global _POOL
-    if MERGE_THREADS < 2 or len(orders) < 2:
-        return [fn(o) for o in orders]
-    with _POOL_LOCK:
-        if _POOL is None or _POOL[0] != os.getpid():
-            _POOL = (os.getpid(), ThreadPoolExecutor(MERGE_THREADS, thread_name_prefix="merge-order"))
-        pool = _POOL[1]
-    return list(pool.map(fn, orders))
+def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
+                   reuse: dict | None = None, warps: Warps | None = None):
+    """Align one order and verify it: (:class:`OrderResult`, layers on map 0's frame)."""
+    warps = Warps(maps) if warps is None else warps
+    theta0, steps = align_order(maps, order, params, reuse, warps)
+    return _order_result(maps, order, params, theta0, steps, warps), place_on_frame0(maps, theta0, warps)
 
 
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
@@ -239,18 +259,23 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     """
     t0 = time.perf_counter()
     orders = merge_orders(len(maps))
-    evaluated = _map_orders(lambda o: evaluate_order(maps, o, params, reuse), orders)
+    warps = Warps(maps)
+    aligned = [align_order(maps, o, params, reuse, warps) for o in orders]
     if reuse is not None:  # keep only this cycle's pairs
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    accepted = [(r, lay) for r, lay in evaluated if r.accepted]
+    results = [_order_result(maps, o, params, theta0, steps, warps)
+               for o, (theta0, steps) in zip(orders, aligned, strict=True)]
+    accepted = [k for k, r in enumerate(results) if r.accepted]
     chosen, merged, layers = None, None, {}
     if accepted:
-        chosen, lay = max(accepted, key=lambda rl: rl[0].nu_sum)
+        best = max(accepted, key=lambda k: results[k].nu_sum)  # the first of equal sums
+        chosen = results[best]
+        lay = place_on_frame0(maps, aligned[best][0], warps)
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
-    return TeamMergeResult(maps[0].name, tuple(r for r, _ in evaluated), chosen, merged, layers,
+    return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
                            (time.perf_counter() - t0) * 1e3)
 
 

@@ -161,6 +161,24 @@ def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, ce
     return out
 
 
+def _lattice_box(ref: OccupancyGrid, x0: float, x1: float, y0: float, y1: float) -> OccupancyGrid:
+    """An all-unknown grid on ``ref``'s cell lattice covering [x0, x1] × [y0, y1]."""
+    r = ref.resolution
+    ox, oy = ref.origin
+    c0 = math.floor((x0 - ox) / r + 1e-9)
+    r0 = math.floor((y0 - oy) / r + 1e-9)
+    c1 = math.ceil((x1 - ox) / r - 1e-9)
+    r1 = math.ceil((y1 - oy) / r - 1e-9)
+    return OccupancyGrid.unknown(max(r1 - r0, 0), max(c1 - c0, 0), r, (ox + c0 * r, oy + r0 * r))
+
+
+def _placed_bounds(g: OccupancyGrid, theta: float, c, center_ref):
+    gx0, gx1, gy0, gy1 = g.extent
+    corners = np.array([[gx0, gy0], [gx1, gy0], [gx0, gy1], [gx1, gy1]])
+    p = apply_alignment(corners, theta, c, center_ref)
+    return p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max()
+
+
 def canvas(ref: OccupancyGrid, placed: list[tuple[OccupancyGrid, float, tuple[float, float]]],
            center_ref) -> OccupancyGrid:
     """An all-unknown grid on ``ref``'s cell lattice covering ``ref`` and every placed map.
@@ -170,18 +188,30 @@ def canvas(ref: OccupancyGrid, placed: list[tuple[OccupancyGrid, float, tuple[fl
     """
     x0, x1, y0, y1 = ref.extent
     for g, theta, c in placed:
-        gx0, gx1, gy0, gy1 = g.extent
-        corners = np.array([[gx0, gy0], [gx1, gy0], [gx0, gy1], [gx1, gy1]])
-        p = apply_alignment(corners, theta, c, center_ref)
-        x0, x1 = min(x0, p[:, 0].min()), max(x1, p[:, 0].max())
-        y0, y1 = min(y0, p[:, 1].min()), max(y1, p[:, 1].max())
-    r = ref.resolution
-    ox, oy = ref.origin
-    c0 = math.floor((x0 - ox) / r + 1e-9)
-    r0 = math.floor((y0 - oy) / r + 1e-9)
-    c1 = math.ceil((x1 - ox) / r - 1e-9)
-    r1 = math.ceil((y1 - oy) / r - 1e-9)
-    return OccupancyGrid.unknown(r1 - r0, c1 - c0, r, (ox + c0 * r, oy + r0 * r))
+        px0, px1, py0, py1 = _placed_bounds(g, theta, c, center_ref)
+        x0, x1, y0, y1 = min(x0, px0), max(x1, px1), min(y0, py0), max(y1, py1)
+    return _lattice_box(ref, x0, x1, y0, y1)
+
+
+def footprint(ref: OccupancyGrid, g: OccupancyGrid, theta: float, center_g, center_ref) -> OccupancyGrid:
+    """The part of :func:`canvas` that ``g`` rotated by θ covers: an all-unknown grid on ``ref``'s lattice.
+
+    Every cell of a canvas outside it is unknown after :func:`warp_grid` (its centre lies outside the
+    rotated grid), so ``paste(warp_grid(g, …, footprint), canvas)`` equals ``warp_grid(g, …, canvas)``.
+    """
+    return _lattice_box(ref, *_placed_bounds(g, theta, center_g, center_ref))
+
+
+def overlap(a: OccupancyGrid, b: OccupancyGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The states of two grids on one cell lattice where their extents overlap (possibly empty)."""
+    r = a.resolution
+    dc = int(round((b.origin[0] - a.origin[0]) / r))
+    dr = int(round((b.origin[1] - a.origin[1]) / r))
+    c0, c1 = max(0, dc), min(a.width, dc + b.width)
+    r0, r1 = max(0, dr), min(a.height, dr + b.height)
+    if c0 >= c1 or r0 >= r1:
+        return np.zeros((0, 0), np.uint8), np.zeros((0, 0), np.uint8)
+    return a.states[r0:r1, c0:c1], b.states[r0 - dr:r1 - dr, c0 - dc:c1 - dc]
 
 
 def paste(ref: OccupancyGrid, target: OccupancyGrid) -> OccupancyGrid:

@@ -21,7 +21,8 @@ from merger.similarity import measure_fn
 from merger.sparse import SparseEvaluator, fast_extract_roi
 from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
 from merger.team import MapInput, MergeParams, merge_team
-from merger.transform import extract_roi, warp_grid, warp_grid_numpy
+from merger.transform import canvas, extract_roi, footprint, overlap, paste, warp_grid, warp_grid_numpy
+from merger.verify import verify
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
 SPECIAL_ANGLES = (0.0, 90.0, 180.0, 270.0, 45.0, 359.9)
@@ -102,6 +103,49 @@ def test_warp_grid_equals_numpy_version(seed, theta, special, tres, round_geomet
     angle = theta if special is None else special
     np.testing.assert_array_equal(warp_grid(mov, angle, cm, ct, target).states,
                                   warp_grid_numpy(mov, angle, cm, ct, target).states)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 360.0), theta2=st.floats(0.0, 360.0),
+       special=st.sampled_from((None,) + SPECIAL_ANGLES))
+def test_footprint_warp_pasted_on_a_canvas_equals_the_warp_onto_that_canvas(seed, theta, theta2, special):
+    """Team merging warps a map once onto its footprint and pastes it onto every canvas (merge orders
+    share warps); pair checks count only where two footprints overlap. Both equal the direct way."""
+    rng = np.random.default_rng(seed)
+    angle = theta if special is None else special
+    ref = random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05, tuple(np.round(rng.uniform(-5, 1, 2), 2)))
+    movs = [random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05, tuple(np.round(rng.uniform(-5, 1, 2), 2)))
+            for _ in range(2)]
+    cr = tuple(np.round(rng.uniform(-2, 2, 2), 3))
+    cms = [tuple(np.round(rng.uniform(-2, 2, 2), 3)) for _ in movs]
+    placed = [(movs[0], angle, cms[0]), (movs[1], theta2, cms[1])]
+    cv = canvas(ref, placed, cr)
+    direct = [warp_grid(g, t, c, cr, cv) for g, t, c in placed]
+    via = [warp_grid(g, t, c, cr, footprint(ref, g, t, c, cr)) for g, t, c in placed]
+    for d, v in zip(direct, via, strict=True):
+        np.testing.assert_array_equal(paste(v, cv).states, d.states)
+    layers = [paste(ref, cv), *direct]
+    grids = [ref, *via]
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        whole = verify(layers[i].states, layers[j].states, nu_min=0.5, min_support=10)
+        assert verify(*overlap(grids[i], grids[j]), nu_min=0.5, min_support=10) == whole
+
+
+def test_fast_runner_up_is_computed_on_first_access_and_pickles_resolved(team_views):
+    """The fast search defers its runner-up (a merge cycle never reads it); it is computed once, on
+    first access, and a pickled alignment carries the values."""
+    import pickle
+
+    _, _, maps, _ = team_views
+    (ga, ca), (gb, cb) = maps[0], maps[1]
+    problem = RotationProblem(ga, gb, ca, cb, 8.0, "similarity")
+    fast, ref = fast_search(problem), reference_search(problem)
+    assert callable(fast._runner_up)
+    copy = pickle.loads(pickle.dumps(fast))
+    assert not callable(fast._runner_up) and copy.runner_up == fast.runner_up  # resolved by pickling
+    assert copy.theta_deg == fast.theta_deg and copy.counts == fast.counts
+    assert_same_answer(fast, ref)
+    assert fast.to_dict()["runner_up_deg"] == fast.runner_up_deg
 
 
 def assert_same_answer(fast, ref):

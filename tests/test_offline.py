@@ -75,7 +75,7 @@ def test_arc_drift_depends_on_the_place_not_the_path():
 
 
 def _order(theta, accepted, names=("Lyon", "Auckland", "Nevers")):
-    al = Alignment(0.0, 0.5, Counts(1, 1), "ncc", "reference", 8.0, np.zeros(360), 180.0, 0.2)
+    al = Alignment(0.0, 0.5, Counts(1, 1), "ncc", "reference", 8.0, np.zeros(360), (180.0, 0.2))
     checks = {"x": Verification(0.5, Counts(1, 1), accepted, "" if accepted else "too low")}
     return OrderResult(names, dict(zip(names, theta, strict=True)), (("Auckland", al), ("Nevers", al)),
                        checks, accepted, "" if accepted else "too low")

@@ -13,6 +13,9 @@ from merger.synthetic import arc_viewpoints, partial_view, room_scene
 
 def test_angle_helpers():
     assert wrap_deg(-0.1) == 359.9 and wrap_deg(360.0) == 0.0
+    # a difference of two search angles lands on the 0.1° grid's float, so equal rotations compare equal
+    assert wrap_deg(0.0 - 279.3) == 80.7 and wrap_deg(-1e-12) == 0.0 and wrap_deg(359.9999999999) == 0.0
+    assert list(wrap_deg(np.array([-279.3, 720.1]))) == [80.7, 0.1]
     assert angle_diff_deg(1.0, 359.0) == 2.0 and angle_diff_deg(180.0, 0.0) == 180.0
     assert len(fine_angles(10.0)) == 21 and fine_angles(10.0)[0] == 9.0
     prof = np.zeros(360)

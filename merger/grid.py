@@ -153,6 +153,20 @@ class OccupancyGrid:
         return np.stack([self.origin[0] + (col + 0.5) * self.resolution,
                          self.origin[1] + (row + 0.5) * self.resolution], axis=-1)
 
+    def known_part(self) -> OccupancyGrid:
+        """The smallest block of this grid holding every known cell, on the same cell lattice (itself
+        when nothing can be cut). Every cell outside it is unknown, so resampling the block gives the
+        same map as resampling the whole grid, on fewer cells."""
+        rows = np.flatnonzero(self.states.any(axis=1))
+        if rows.size == 0:
+            return self
+        cols = np.flatnonzero(self.states.any(axis=0))
+        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+        if (r0, c0, r1, c1) == (0, 0, self.height, self.width):
+            return self
+        return OccupancyGrid(self.states[r0:r1, c0:c1], self.resolution,
+                             (self.origin[0] + c0 * self.resolution, self.origin[1] + r0 * self.resolution))
+
     def count(self) -> dict[str, int]:
         """Number of unknown, free and occupied cells."""
         b = np.bincount(self.states.ravel(), minlength=3)

@@ -132,14 +132,39 @@ def _max_pool(crop: np.ndarray, p: int) -> np.ndarray:
 
 
 _CACHE: OrderedDict = OrderedDict()
+_INDEX: dict = {}  # sample indices by layout and crop geometry (:func:`_sample_index`)
 _CACHE_SIZE = 12
 _LOCK = threading.Lock()
 
 
 def clear_cache() -> None:
-    """Forget the cached polar spectra (benchmarks use this to time cold merge cycles)."""
+    """Forget the cached polar spectra and sample indices (benchmarks use this to time cold merge cycles)."""
     with _LOCK:
         _CACHE.clear()
+        _INDEX.clear()
+
+
+def _sample_index(lay: PolarLayout, offset, shape, res: float) -> np.ndarray:
+    """Flat index of the pooled cell holding every sample (the extra cell ``size`` when the sample lies
+    outside the ROI's square), for a crop whose corner is ``offset`` (metres) from the center. The maps
+    of a merge cycle share few lattices (a superposition has its first map's), so it is cached."""
+    key = (lay.n, lay.res, lay.pool, offset[0], offset[1], shape, res)
+    with _LOCK:
+        if key in _INDEX:
+            return _INDEX[key]
+    inv = np.float32(1.0 / (res * lay.pool))
+    ix = (lay.x * inv + np.float32(offset[0] * inv)).astype(np.intp)  # nearest: the pooled
+    iy = (lay.y * inv + np.float32(offset[1] * inv)).astype(np.intp)  # cell holding the sample
+    np.clip(ix, 0, shape[1] - 1, out=ix)
+    np.clip(iy, 0, shape[0] - 1, out=iy)
+    iy *= shape[1]
+    iy += ix
+    iy[~lay.mask] = shape[0] * shape[1]
+    with _LOCK:
+        _INDEX[key] = iy
+        while len(_INDEX) > _CACHE_SIZE:
+            _INDEX.pop(next(iter(_INDEX)))
+    return iy
 
 
 def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
@@ -157,15 +182,13 @@ def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
                 _CACHE.move_to_end(key)
                 return spec
     pooled = _max_pool(crop, lay.pool)
-    inv = np.float32(1.0 / (grid.resolution * lay.pool))
-    ix = (lay.x * inv + np.float32((center[0] - org[0]) * inv)).astype(np.intp)  # nearest: the pooled
-    iy = (lay.y * inv + np.float32((center[1] - org[1]) * inv)).astype(np.intp)  # cell holding the sample
-    np.clip(ix, 0, pooled.shape[1] - 1, out=ix)
-    np.clip(iy, 0, pooled.shape[0] - 1, out=iy)
-    iy *= pooled.shape[1]
-    iy += ix
-    s = pooled.reshape(-1).take(iy) * lay.mask
-    spec = _spectra(lay, np.stack([s == OCCUPIED_S, s == FREE_S]).astype(np.float32))
+    flat = np.zeros(pooled.size + 1, np.uint8)  # and one unknown cell for the samples outside the ROI
+    flat[:-1] = pooled.reshape(-1)
+    s = flat.take(_sample_index(lay, key[3:5], pooled.shape, grid.resolution))
+    values = np.empty((2, s.size), np.float32)
+    np.equal(s, OCCUPIED_S, out=values[0])
+    np.equal(s, FREE_S, out=values[1])
+    spec = _spectra(lay, values)
     with _LOCK:
         _CACHE.setdefault(key, []).append((crop, spec))
         _CACHE.move_to_end(key)

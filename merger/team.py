@@ -158,8 +158,19 @@ class Warps:
 
     def __init__(self, maps: list[MapInput]) -> None:
         self.maps = maps
+        self._known: dict[int, OccupancyGrid] = {}
         self._warps: dict[tuple[int, int, float], OccupancyGrid] = {}
         self._checks: dict[tuple, Verification] = {}
+
+    def known(self, k: int) -> OccupancyGrid:
+        """Map ``k``'s known cells (:meth:`OccupancyGrid.known_part`): what is warped and placed."""
+        if k not in self._known:
+            self._known[k] = self.maps[k].grid.known_part()
+        return self._known[k]
+
+    def placed(self, k: int, theta: float) -> tuple[OccupancyGrid, float, tuple[float, float]]:
+        """``(grid, θ, center)`` of map ``k`` for :func:`merger.transform.canvas`."""
+        return self.known(k), theta, self.maps[k].center
 
     def get(self, frame: int, k: int, theta: float) -> OccupancyGrid:
         """Map ``k`` rotated by ``theta`` onto map ``frame``'s lattice (about the maps' centers)."""
@@ -167,9 +178,9 @@ class Warps:
             return self.maps[k].grid
         key = (frame, k, theta)
         if key not in self._warps:
-            base, m = self.maps[frame], self.maps[k]
-            fp = footprint(base.grid, m.grid, theta, m.center, base.center)
-            self._warps[key] = warp_grid(m.grid, theta, m.center, base.center, fp)
+            base, m, g = self.maps[frame], self.maps[k], self.known(k)
+            fp = footprint(base.grid, g, theta, m.center, base.center)
+            self._warps[key] = warp_grid(g, theta, m.center, base.center, fp)
         return self._warps[key]
 
     def check(self, i: int, theta_i: float, j: int, theta_j: float, params: MergeParams) -> Verification:
@@ -206,7 +217,7 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
         theta_first[k] = al.theta_deg
         steps.append((m.name, al))
         if k != order[-1]:
-            cv = canvas(sup, [(m.grid, al.theta_deg, m.center)], first.center)
+            cv = canvas(sup, [warps.placed(k, al.theta_deg)], first.center)
             sup = OccupancyGrid(superpose(paste(sup, cv).states, paste(warps.get(order[0], k, al.theta_deg),
                                                                        cv).states),
                                 cv.resolution, cv.origin)
@@ -217,10 +228,11 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
 
 def place_on_frame0(maps: list[MapInput], theta0: dict[int, float],
                     warps: Warps | None = None) -> list[OccupancyGrid]:
-    """All maps resampled onto one canvas in map 0's frame."""
+    """All maps resampled onto one canvas in map 0's frame: map 0's grid and every other map's known
+    cells (:meth:`Warps.known`)."""
     warps = Warps(maps) if warps is None else warps
     base = maps[0]
-    cv = canvas(base.grid, [(m.grid, theta0[i], m.center) for i, m in enumerate(maps) if i], base.center)
+    cv = canvas(base.grid, [warps.placed(i, theta0[i]) for i in range(1, len(maps))], base.center)
     return [paste(base.grid, cv)] + [paste(warps.get(0, i, theta0[i]), cv) for i in range(1, len(maps))]
 
 

@@ -21,7 +21,16 @@ from merger.similarity import measure_fn
 from merger.sparse import SparseEvaluator, fast_extract_roi
 from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
 from merger.team import MapInput, MergeParams, merge_team
-from merger.transform import canvas, extract_roi, footprint, overlap, paste, warp_grid, warp_grid_numpy
+from merger.transform import (
+    apply_alignment,
+    canvas,
+    extract_roi,
+    footprint,
+    overlap,
+    paste,
+    warp_grid,
+    warp_grid_numpy,
+)
 from merger.verify import verify
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
@@ -105,26 +114,52 @@ def test_warp_grid_equals_numpy_version(seed, theta, special, tres, round_geomet
                                   warp_grid_numpy(mov, angle, cm, ct, target).states)
 
 
+def _on_a_border(g: OccupancyGrid, theta, c, cr, target: OccupancyGrid) -> np.ndarray:
+    """Cells of ``target`` whose source point in ``g`` lies within 1e-9 cell of a cell border: there the
+    nearest cell is a tie that float rounding of the target's own cell centres decides."""
+    rows, cols = np.indices(target.shape)
+    u = g.world_to_cell(apply_alignment(target.cell_center(rows, cols), -theta, cr, c))
+    return (np.abs(u - np.round(u)) < 1e-9).any(axis=-1)
+
+
 @settings(max_examples=30, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 360.0), theta2=st.floats(0.0, 360.0),
-       special=st.sampled_from((None,) + SPECIAL_ANGLES))
-def test_footprint_warp_pasted_on_a_canvas_equals_the_warp_onto_that_canvas(seed, theta, theta2, special):
-    """Team merging warps a map once onto its footprint and pastes it onto every canvas (merge orders
-    share warps); pair checks count only where two footprints overlap. Both equal the direct way."""
+       special=st.sampled_from((None,) + SPECIAL_ANGLES), round_geometry=st.booleans())
+def test_footprint_warp_pasted_on_a_canvas_equals_the_warp_onto_that_canvas(seed, theta, theta2, special,
+                                                                           round_geometry):
+    """Team merging warps only a map's known cells, once, onto their footprint, and pastes that onto
+    every canvas (merge orders share warps); pair checks count only where two footprints overlap.
+
+    This equals warping the whole map onto the canvas, except on cells whose source point lies exactly
+    on a cell border (a tie: the footprint's and the canvas's cell centres are different floats); such
+    ties only occur with round geometry at right angles, and the test allows them nowhere else."""
     rng = np.random.default_rng(seed)
     angle = theta if special is None else special
-    ref = random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05, tuple(np.round(rng.uniform(-5, 1, 2), 2)))
-    movs = [random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05, tuple(np.round(rng.uniform(-5, 1, 2), 2)))
-            for _ in range(2)]
-    cr = tuple(np.round(rng.uniform(-2, 2, 2), 3))
-    cms = [tuple(np.round(rng.uniform(-2, 2, 2), 3)) for _ in movs]
+    digits = 2 if round_geometry else 9
+    ref = random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05,
+                      tuple(np.round(rng.uniform(-5, 1, 2), digits)))
+    movs = [random_grid(rng, tuple(rng.integers(5, 200, 2)), 0.05,
+                        tuple(np.round(rng.uniform(-5, 1, 2), digits))) for _ in range(2)]
+    for g in movs:  # unknown margins, as around a robot's map
+        h, w = g.shape
+        r0, c0 = rng.integers(0, h // 2 + 1), rng.integers(0, w // 2 + 1)
+        g.states[:r0], g.states[:, :c0] = 0, 0
+        g.states[rng.integers(r0, h + 1):], g.states[:, rng.integers(c0, w + 1):] = 0, 0
+    cr = tuple(np.round(rng.uniform(-2, 2, 2), digits + 1))
+    cms = [tuple(np.round(rng.uniform(-2, 2, 2), digits + 1)) for _ in movs]
     placed = [(movs[0], angle, cms[0]), (movs[1], theta2, cms[1])]
-    cv = canvas(ref, placed, cr)
-    direct = [warp_grid(g, t, c, cr, cv) for g, t, c in placed]
-    via = [warp_grid(g, t, c, cr, footprint(ref, g, t, c, cr)) for g, t, c in placed]
-    for d, v in zip(direct, via, strict=True):
-        np.testing.assert_array_equal(paste(v, cv).states, d.states)
-    layers = [paste(ref, cv), *direct]
+    cv = canvas(ref, [(g.known_part(), t, c) for g, t, c in placed], cr)
+    via = []
+    for g, t, c in placed:
+        direct = warp_grid(g, t, c, cr, cv).states
+        k = g.known_part()
+        v = warp_grid(k, t, c, cr, footprint(ref, k, t, c, cr))
+        differ = paste(v, cv).states != direct
+        assert not (differ & ~_on_a_border(g, t, c, cr, cv)).any()
+        if not round_geometry:
+            assert not differ.any()
+        via.append(v)
+    layers = [paste(ref, cv)] + [paste(v, cv) for v in via]
     grids = [ref, *via]
     for i, j in ((0, 1), (0, 2), (1, 2)):
         whole = verify(layers[i].states, layers[j].states, nu_min=0.5, min_support=10)

@@ -38,3 +38,17 @@ def test_rejects_bad_states():
     with pytest.raises(ValueError):
         OccupancyGrid(np.zeros(4, np.uint8))
     assert ros_from_states(np.array([UNKNOWN_S, FREE_S, OCCUPIED_S])).tolist() == [-1, 0, 100]
+
+
+def test_known_part_is_the_block_of_known_cells_on_the_same_lattice():
+    st = np.zeros((6, 8), np.uint8)
+    st[2, 3], st[4, 5] = FREE_S, OCCUPIED_S
+    g = OccupancyGrid(st, 0.5, (-1.0, 2.0))
+    k = g.known_part()
+    assert k.states.tolist() == [[1, 0, 0], [0, 0, 0], [0, 0, 2]]
+    assert k.origin == (-1.0 + 3 * 0.5, 2.0 + 2 * 0.5) and k.resolution == 0.5
+    assert g.count()["free"] == k.count()["free"] and g.count()["occupied"] == k.count()["occupied"]
+    empty = OccupancyGrid.unknown(3, 3)
+    assert empty.known_part() is empty
+    full = OccupancyGrid(np.ones((2, 2), np.uint8))
+    assert full.known_part() is full

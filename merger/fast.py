@@ -189,12 +189,12 @@ def fast_search(problem: RotationProblem) -> Alignment:
     values = ev.scores(fine)
     k = int(np.argmax(values))  # the first maximum, as the reference's strict '>' scan
     theta = wrap_deg(fine[k])
-    sim = ev.similarity(fine[k])
     profile = approx.copy()
     for i, v in coarse.values.items():
         profile[i] = v
-    return Alignment(theta, sim.value, sim.counts, problem.measure, "fast", problem.roi_m, profile,
-                     lambda: _runner_up(coarse, approx, theta))
+    # the free/free count (Birk–Carpin's part of the counts) and the runner-up are computed if asked for
+    return Alignment(theta, float(values[k]), lambda: ev.similarity(fine[k]).counts, problem.measure, "fast",
+                     problem.roi_m, profile, lambda: _runner_up(coarse, approx, theta))
 
 
 def _runner_up(coarse: _Coarse, approx: np.ndarray, theta: float) -> tuple[float, float]:

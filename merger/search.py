@@ -66,18 +66,19 @@ class Alignment:
 
     theta_deg : the rotation of the moving map onto the reference, in [0, 360).
     score : the similarity at ``theta_deg`` on the ROI.
-    counts : agr̃, dis (and free/free) at ``theta_deg`` on the ROI.
+    counts : agr̃, dis and free/free at ``theta_deg`` on the ROI.
     profile : coarse scores at 0°, 1°, ..., 359°.
     runner_up_deg, runner_up_score : best coarse angle at least 10° away from ``theta_deg``.
 
-    A search may hand over the runner-up as a callable (the last argument, ``_runner_up``) that is
-    called once, on first access: a merge cycle never reads it, so it does not pay for it. Pickling
-    resolves it.
+    A search may hand over the counts and the runner-up as callables (arguments ``_counts`` and
+    ``_runner_up``), each called once, on first access: a merge cycle decides on θ and the score
+    alone, so it does not pay for the rest of the evidence (the free/free count, the runner-up search)
+    unless someone reads it. Pickling resolves them.
     """
 
     theta_deg: float
     score: float
-    counts: Counts
+    _counts: Counts | Callable[[], Counts] = field(repr=False)
     measure: str
     method: str
     roi_m: float
@@ -87,18 +88,29 @@ class Alignment:
     def __post_init__(self) -> None:
         object.__setattr__(self, "_lock", threading.Lock())
 
+    def _resolve(self, name: str, convert):
+        value = getattr(self, name)
+        if callable(value):
+            with self._lock:  # two threads may ask at once; the search behind it is not thread-safe
+                value = getattr(self, name)
+                if callable(value):
+                    value = convert(value())
+                    object.__setattr__(self, name, value)
+        return value
+
+    @property
+    def counts(self) -> Counts:
+        """agr̃, dis and free/free at ``theta_deg`` on the ROI (computed on first access if deferred)."""
+        return self._resolve("_counts", lambda c: c)
+
     @property
     def runner_up(self) -> tuple[float, float]:
         """(runner_up_deg, runner_up_score), computed on first access when the search deferred it."""
-        if callable(self._runner_up):
-            with self._lock:  # two threads may ask at once; the search behind it is not thread-safe
-                if callable(self._runner_up):
-                    object.__setattr__(self, "_runner_up", tuple(float(v) for v in self._runner_up()))
-        return self._runner_up
+        return self._resolve("_runner_up", lambda r: tuple(float(v) for v in r))
 
     def __getstate__(self) -> dict:
         state = {k: v for k, v in self.__dict__.items() if k != "_lock"}
-        state["_runner_up"] = self.runner_up
+        state["_counts"], state["_runner_up"] = self.counts, self.runner_up
         return state
 
     def __setstate__(self, state: dict) -> None:

@@ -9,19 +9,26 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S
+
+# superposition of states a and b at index 3a + b (codes unknown 0, free 1, occupied 2), for cv2.LUT
+_SUPERPOSE = np.zeros(256, np.uint8)
+_SUPERPOSE[:9] = [UNKNOWN_S, UNKNOWN_S, OCCUPIED_S,
+                  UNKNOWN_S, FREE_S, OCCUPIED_S,
+                  OCCUPIED_S, OCCUPIED_S, OCCUPIED_S]
 
 
 def superpose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Superposition with occupied priority: occupied if either; free only if both free; else unknown."""
     if a.shape != b.shape:
         raise ValueError(f"shapes differ: {a.shape} vs {b.shape}")
-    out = np.full(a.shape, UNKNOWN_S, np.uint8)
-    out[(a == FREE_S) & (b == FREE_S)] = FREE_S
-    out[(a == OCCUPIED_S) | (b == OCCUPIED_S)] = OCCUPIED_S
-    return out
+    if a.size == 0:
+        return np.zeros(a.shape, np.uint8)
+    idx = cv2.scaleAdd(np.ascontiguousarray(a, np.uint8), 3.0, np.ascontiguousarray(b, np.uint8))
+    return cv2.LUT(idx, _SUPERPOSE).reshape(a.shape)
 
 
 def fuse(layers: list[np.ndarray]) -> np.ndarray:

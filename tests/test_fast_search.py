@@ -166,19 +166,21 @@ def test_footprint_warp_pasted_on_a_canvas_equals_the_warp_onto_that_canvas(seed
         assert verify(*overlap(grids[i], grids[j]), nu_min=0.5, min_support=10) == whole
 
 
-def test_fast_runner_up_is_computed_on_first_access_and_pickles_resolved(team_views):
-    """The fast search defers its runner-up (a merge cycle never reads it); it is computed once, on
-    first access, and a pickled alignment carries the values."""
+def test_fast_evidence_is_computed_on_first_access_and_pickles_resolved(team_views):
+    """The fast search defers its counts (the free/free count) and its runner-up: a merge cycle only
+    reads θ and the score. Both are computed once, on first access, equal the reference's, and a
+    pickled alignment carries the values."""
     import pickle
 
     _, _, maps, _ = team_views
     (ga, ca), (gb, cb) = maps[0], maps[1]
     problem = RotationProblem(ga, gb, ca, cb, 8.0, "similarity")
     fast, ref = fast_search(problem), reference_search(problem)
-    assert callable(fast._runner_up)
+    assert callable(fast._runner_up) and callable(fast._counts)
     copy = pickle.loads(pickle.dumps(fast))
-    assert not callable(fast._runner_up) and copy.runner_up == fast.runner_up  # resolved by pickling
-    assert copy.theta_deg == fast.theta_deg and copy.counts == fast.counts
+    assert not callable(fast._runner_up) and not callable(fast._counts)  # resolved by pickling
+    assert copy.runner_up == fast.runner_up and copy.counts == fast.counts == ref.counts
+    assert copy.theta_deg == fast.theta_deg and copy.score == fast.score == ref.score
     assert_same_answer(fast, ref)
     assert fast.to_dict()["runner_up_deg"] == fast.runner_up_deg
 

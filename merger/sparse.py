@@ -134,7 +134,6 @@ class SparseEvaluator:
         self._crop(problem.moving)
         self._memo: dict[float, list] = {}  # angle -> counts row (-1: not computed)
         self._done: dict[str, set] = {p: set() for p in self._PARTS}  # angles whose part is computed
-        self._padded: dict = {}  # scratch for _near_walls
         self._full: dict[float, np.ndarray] = {}
 
     def _homogeneous(self, lattice_flat: np.ndarray) -> np.ndarray:
@@ -233,28 +232,19 @@ class SparseEvaluator:
         g[:ns, :2], g[ns:, :2] = fr[:, 0, :], fr[:, 1, :]
         g[:, 2] = (n - 1) / 2.0 - self.rad + nb
         lo = np.ceil(g @ self.q_h)  # (2T, Q): first lattice point per axis, padded by nb
-        np.clip(lo, 0, w - nb, out=lo)
+        np.maximum(lo, 0, out=lo)
+        np.minimum(lo, w - nb, out=lo)
         lo[ns:] *= w
         lo[ns:] += lo[:ns]
-        d = np.arange(nb)
-        marks = (lo[ns:].astype(np.intp).reshape(-1, 1) + (d[:, None] * w + d[None, :]).reshape(1, -1)).reshape(-1)
-        if marks.size > w * w // 8:  # many marks: a dense mask
-            mask = np.zeros(w * w, bool)
-            mask[marks] = True
-            return np.flatnonzero(mask.reshape(w, w)[nb:nb + n, nb:nb + n] & keep.reshape(n, n))
-        # few marks: keep the wanted ones, then one of each (the last writer of a slot wins)
-        key = (id(keep), w)
-        if key not in self._padded:
-            padded = np.zeros((w, w), bool)
-            padded[nb:nb + n, nb:nb + n] = keep.reshape(n, n)
-            self._padded[key] = (padded.reshape(-1), np.empty(w * w, np.intp))
-        padded, slots = self._padded[key]
-        marks = marks[padded.take(marks)]
-        order = np.arange(marks.size)
-        slots[marks] = order
-        marks = marks[slots.take(marks) == order]
-        r, c = np.divmod(marks, w)
-        return np.sort((r - nb) * n + (c - nb))
+        # mark each nb × nb block of candidates by its first point, then widen the marks into blocks
+        first = np.zeros((w, w), bool)
+        first.reshape(-1)[lo[ns:].astype(np.intp).reshape(-1)] = True
+        mask = first.copy()
+        for dy in range(nb):
+            for dx in range(nb):
+                if dy or dx:
+                    mask[dy:, dx:] |= first[:w - dy, :w - dx]
+        return np.flatnonzero(mask[nb:nb + n, nb:nb + n] & keep.reshape(n, n))
 
     def _moving_occupied(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
         """Lattice points whose lookup is an occupied moving cell: ``out[:, 0]`` += those where the

@@ -61,8 +61,9 @@ class Observer:
                          center_given: tuple[float, float], center_true: tuple[float, float]) -> None:
         """A robot published its SLAM map (its frame); ``center_given`` includes the injected error."""
 
-    def on_map_received(self, t: float, recipient: str, sender: str, sent_s: float) -> None:
-        """A teammate's map arrived over the network (delay = t − sent_s)."""
+    def on_map_received(self, t: float, recipient: str, sender: str, sent_s: float, stale: bool = False) -> None:
+        """A teammate's map arrived over the network (delay = t − sent_s); ``stale``: the map held from that
+        teammate is as new or newer (out-of-order or repeated delivery), so this one was dropped."""
 
     def on_merge_cycle(self, cycle: MergeCycle) -> None:
         """A robot ran a merge cycle."""

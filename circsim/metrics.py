@@ -41,7 +41,8 @@ class RobotMetrics:
     rejected_correct: int = 0
     final_angle_error_deg: dict[str, float] | None = None  # of the alignment held at the end
     maps_published: int = 0
-    maps_received: int = 0
+    maps_received: int = 0  # teammates' maps taken (newer than the one held)
+    maps_stale: int = 0  # teammates' maps dropped: not newer than the one held (out of order, repeated)
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -104,8 +105,12 @@ class MetricsObserver(Observer):
     def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
         self.result.robots[robot].maps_published += 1
 
-    def on_map_received(self, t, recipient, sender, sent_s) -> None:
-        self.result.robots[recipient].maps_received += 1
+    def on_map_received(self, t, recipient, sender, sent_s, stale=False) -> None:
+        m = self.result.robots[recipient]
+        if stale:
+            m.maps_stale += 1
+        else:
+            m.maps_received += 1
 
     def on_merge_cycle(self, cycle: MergeCycle) -> None:
         m = self.result.robots[cycle.robot]

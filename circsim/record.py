@@ -189,10 +189,11 @@ class RerunRecorder(Observer):
         self._text(robot, "DEBUG", f"published map #{self.published[robot]} ({c['occupied']} occupied, "
                                    f"{c['free']} free cells)")
 
-    def on_map_received(self, t, recipient, sender, sent_s) -> None:
+    def on_map_received(self, t, recipient, sender, sent_s, stale=False) -> None:
         self._at(t, self.step)
         self._text(recipient, "DEBUG", f"received {sender}'s map sent at {sent_s:.2f} s "
-                                       f"(delay {t - sent_s:.3f} s)")
+                                       f"(delay {t - sent_s:.3f} s)"
+                                       + ("; stale (a newer one had arrived): dropped" if stale else ""))
 
     def on_merge_cycle(self, c: MergeCycle) -> None:
         self._at(c.t, self.step)

@@ -154,9 +154,10 @@ class Simulation:
                 self.network.broadcast(n, self.robot_names, r.merger.maps[n], t)
         for n, r in self.robots.items():
             for m in self.network.deliver(n, t + eps):
-                if r.merger.receive(m.payload):
+                fresh = r.merger.receive(m.payload)
+                if fresh:
                     r.inbox_new.append(m.sender)
-                self._emit("on_map_received", t, n, m.sender, m.sent_s)
+                self._emit("on_map_received", t, n, m.sender, m.sent_s, not fresh)
 
     def _merge(self, r: Robot, t: float) -> None:
         trigger = ",".join(dict.fromkeys(r.inbox_new))

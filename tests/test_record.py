@@ -294,7 +294,8 @@ def test_run_recording_matches_the_metrics(short_run):
         ev = texts(rec, f"/events/{n}")
         assert len(rec[f"/world/robots/{n}/map/local"]) == m["maps_published"] > 0
         assert sum(x.startswith("published map") for x in ev) == m["maps_published"]
-        assert sum(x.startswith("received") for x in ev) == m["maps_received"]
+        assert sum(x.startswith("received") for x in ev) == m["maps_received"] + m["maps_stale"]
+        assert sum(x.startswith("received") and "stale" in x for x in ev) == m["maps_stale"]
         assert sum(x.startswith("accepted merge") for x in ev) == m["accepted"] > 0
         assert sum(x.startswith("rejected merge") for x in ev) == m["cycles"] - m["accepted"]
         assert sum("FALSE MERGE" in x for x in ev) == m["false_merges"]

@@ -137,6 +137,29 @@ def test_ctrl_c_stops_at_a_tick_boundary_so_every_observer_sees_the_same_events(
     assert sum(r.accepted for r in res.robots.values()) == Count.accepted > 0
 
 
+def test_out_of_order_maps_are_counted_as_stale_not_received():
+    """With jitter as large as the send period, maps overtake each other: a map no newer than the one
+    held is dropped (``maps_stale``); ``maps_received`` counts only the maps a robot took. Every send
+    carries the map published in the same tick (both periods 2 s, same phase), so a map is stale
+    exactly when one sent later arrived first."""
+    class Deliveries(Observer):
+        def __init__(self):
+            self.newest, self.expect = {}, {}
+
+        def on_map_received(self, t, recipient, sender, sent_s, stale=False):
+            key = (recipient, sender)
+            late = key in self.newest and sent_s <= self.newest[key]
+            assert stale == late
+            self.newest[key] = max(sent_s, self.newest.get(key, sent_s))
+            self.expect.setdefault(recipient, [0, 0])[int(stale)] += 1
+
+    obs = Deliveries()
+    res = Simulation(scene("scene1", "duration_s=30", "network.jitter_s=2.0"), [obs]).run()
+    for n, (fresh, stale) in obs.expect.items():
+        assert (res.robots[n].maps_received, res.robots[n].maps_stale) == (fresh, stale)
+    assert sum(r.maps_stale for r in res.robots.values()) > 0
+
+
 def test_cli_run_json_has_every_field(tmp_path, capsys):
     out = tmp_path / "m.json"
     rc = main(["run", "scene1", "--set", "duration_s=6", "--set", "merger.method=fast", "--json", str(out),

@@ -23,10 +23,13 @@ exact climbing from the far zone's edges (the main peak's flanks) and from the a
 best far peaks. Its value is an exact profile value, never above the reference's runner-up, and equal
 to it on ~95% of generated cases (the misses are flat, noisy far zones whose maximum is elsewhere).
 The returned ``profile`` is the approximate profile with the exact values substituted at every coarse
-angle evaluated exactly. All three measures (ω̃, Birk–Carpin ω, NCC) are supported; Birk–Carpin's
-free/free count touches every free reference cell, so its exact evaluations are the slowest.
-The usual case is one batch of exact evaluations (:meth:`SparseEvaluator.prepare`) and the final
-free/free count.
+angle evaluated exactly before the search returned. All three measures (ω̃, Birk–Carpin ω, NCC) are
+supported; Birk–Carpin's free/free count touches every free reference cell, so its exact evaluations
+are the slowest. The usual case is one batch of exact evaluations (:meth:`SparseEvaluator.prepare`).
+
+The runner-up and the counts are handed over deferred (:class:`merger.search.Alignment`): the first
+read runs the runner-up search, or the free/free count at θ (ω̃ and NCC need only agr̃ and dis), on the
+search's own evaluator. A merge cycle reads θ and the score only.
 """
 
 from __future__ import annotations

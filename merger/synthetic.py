@@ -240,3 +240,21 @@ def arc_viewpoints(angle_deg: float, half_arc_deg: float, radius: float, center=
     """Viewpoints on the circle spread over angle ± half_arc (the offline displacement experiment)."""
     a = np.radians(np.linspace(angle_deg - half_arc_deg, angle_deg + half_arc_deg, k))
     return np.stack([center[0] + radius * np.cos(a), center[1] + radius * np.sin(a)], axis=1)
+
+
+def random_view_pair(seed: int):
+    """Two partial views of one generated room, seen from frames rotated by a random θ about nearly the
+    same center, with varying overlap (viewpoint arcs 5–60°, up to 60° apart): the problems on which the
+    fast search is compared with the reference (tests, ``benchmarks/agree_fast.py``).
+
+    Returns ``(ref_grid, ref_center, moving_grid, moving_center, roi_m)``.
+    """
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng, n_boxes=int(rng.integers(0, 6)))
+    theta, a0, yaw = rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(0, 2 * math.pi)
+    fa = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw)
+    fb = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw + math.radians(theta))
+    ga, ca = partial_view(scene, fa, arc_viewpoints(a0, rng.uniform(5, 60), 1.8, k=3), noise=0.002, rng=rng)
+    gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + rng.uniform(-60, 60), rng.uniform(5, 60), 1.8, k=3),
+                          noise=0.002, rng=rng)
+    return ga, ca, gb, cb, float(rng.uniform(3.2, 8.0))

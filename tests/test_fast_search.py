@@ -19,7 +19,7 @@ from merger.grid import OccupancyGrid
 from merger.search import SEARCH_METHODS, RotationProblem, angle_diff_deg, reference_search
 from merger.similarity import measure_fn
 from merger.sparse import SparseEvaluator, fast_extract_roi
-from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
+from merger.synthetic import arc_viewpoints, partial_view, random_view_pair, robot_pose_on_circle, room_scene
 from merger.team import MapInput, MergeParams, merge_team
 from merger.transform import (
     apply_alignment,
@@ -232,16 +232,9 @@ def test_fast_equals_reference_on_degenerate_problems():
 
 
 def sweep_problem(seed: int, measure: str) -> RotationProblem:
-    """A problem of the randomized sweeps run while developing merger.fast (views of varying overlap)."""
-    rng = np.random.default_rng(seed)
-    scene = room_scene(rng, n_boxes=int(rng.integers(0, 6)))
-    theta, a0, yaw = rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(0, 2 * math.pi)
-    fa = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw)
-    fb = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw + math.radians(theta))
-    ga, ca = partial_view(scene, fa, arc_viewpoints(a0, rng.uniform(5, 60), 1.8, k=3), noise=0.002, rng=rng)
-    gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + rng.uniform(-60, 60), rng.uniform(5, 60), 1.8, k=3),
-                          noise=0.002, rng=rng)
-    return RotationProblem(ga, gb, ca, cb, float(rng.uniform(3.2, 8.0)), measure)
+    """A problem of the randomized comparisons (``benchmarks/agree_fast.py``)."""
+    ga, ca, gb, cb, roi = random_view_pair(seed)
+    return RotationProblem(ga, gb, ca, cb, roi, measure)
 
 
 def test_fast_equals_reference_on_past_misses():

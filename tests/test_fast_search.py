@@ -195,7 +195,7 @@ def assert_same_answer(fast, ref):
     assert fast.runner_up_score <= ref.runner_up_score
 
 
-@settings(max_examples=10, deadline=None, derandomize=True)
+@settings(max_examples=25, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), roi=st.floats(3.2, 8.0),
        arc_shift=st.floats(-40.0, 40.0), arc=st.floats(5.0, 60.0))
 def test_fast_equals_reference_similarity(seed, theta, roi, arc_shift, arc):
@@ -204,7 +204,7 @@ def test_fast_equals_reference_similarity(seed, theta, roi, arc_shift, arc):
     assert_same_answer(fast_search(p), reference_search(p))
 
 
-@settings(max_examples=4, deadline=None, derandomize=True)
+@settings(max_examples=12, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), roi=st.floats(3.2, 8.0),
        arc_shift=st.floats(-40.0, 40.0), measure=st.sampled_from(("birk_carpin", "ncc")))
 def test_fast_equals_reference_other_measures(seed, theta, roi, arc_shift, measure):

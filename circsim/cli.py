@@ -131,6 +131,10 @@ def cmd_run(args) -> int:
     from .sim import Simulation
 
     sc = load_with_overrides(args.scenario, args.seed, args.set)
+    if sc.robots.motion == "offline":
+        raise UsageError(f"{sc.source}: robots.motion: offline is the displacement experiment (robots moved "
+                         f"±φ step by step, maps saved at each step): run `circsim offline {args.scenario}` "
+                         "(with --out DIR --save-maps for the maps); `circsim run` drives the robots online")
     rrd = args.rrd or (Path(sc.output.rrd) if sc.output.rrd else None)
     json_out = args.json or (Path(sc.output.json) if sc.output.json else None)
     if rrd:
@@ -188,6 +192,9 @@ def main(argv=None) -> int:
         return fn(args)
     except (UsageError, ScenarioError, FileNotFoundError, ValueError) as e:
         print(f"circsim: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # a file the user named cannot be read or written
+        print(f"circsim: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("circsim: interrupted", file=sys.stderr)

@@ -54,6 +54,23 @@ def register_offline(sub) -> None:
     p.set_defaults(func=cmd_offline)
 
 
+class OutputError(ValueError):
+    """An output folder that cannot be made or written (one line, exit 2)."""
+
+
+def output_dir(path: Path | None, option: str = "--out") -> None:
+    """Make ``path`` (a folder) and check it is writable, before any work; raises :class:`OutputError`."""
+    if path is None:
+        return
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".circsim-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise OutputError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
+
+
 def cmd_offline(args) -> int:
     from .cli import load_with_overrides
     from .offline import OfflineSettings
@@ -66,6 +83,7 @@ def cmd_offline(args) -> int:
                                ncc_score_min=args.score_min, search_method=args.search_method, full=args.full)
     bases = [load_with_overrides(s, args.seed, args.set) for s in args.scenarios]
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
+    output_dir(args.out)
     if args.calibrate:
         return _calibrate(scenarios, settings, args)
     return _offline(scenarios, settings, args)
@@ -80,8 +98,6 @@ def _offline(scenarios, settings, args) -> int:
 
     search = settings.search_method or default_search_method()
     out: Path | None = args.out
-    if out:
-        out.mkdir(parents=True, exist_ok=True)
     seed_results, records_path = [], (out / "offline_records.jsonl") if out else None
     rec_file = open(records_path, "w") if records_path else None
     bar = tqdm(total=len(scenarios), unit="scene·seed", disable=args.quiet, desc="offline")
@@ -177,7 +193,6 @@ def _calibrate(scenarios, settings, args) -> int:
           f"{cal['max_wrong_angle_score']:.3f}; proposed --score-min {cal['threshold']:g} "
           f"({cal['correct_at_or_above']} of {cal['correct_best']} right alignments reach it)")
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "ncc_calibration.json").write_text(json.dumps({"calibration": cal, "hypotheses": rows}))
     return 0
 
@@ -233,6 +248,7 @@ def cmd_sweep(args) -> int:
     base = load_with_overrides(args.scenario, args.seed, args.set)
     axes = parse_grid(args.grid)
     tasks = plan(base, axes, args.seeds)
+    output_dir(args.out)
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     if base.merger.method == "reference" and todo and not args.quiet:
         print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "

@@ -10,7 +10,9 @@ sweep skips the runs whose key (scenario, grid values, seed) is already there. A
 written as ``runs.csv`` (and ``runs.parquet`` with pyarrow), ``summary.csv`` and plots.
 
 Row columns (DESIGN.md metric names, flattened): ``scenario``, ``seed``, every grid key, the
-scenario's ``center_error.magnitude_m`` and ``network.latency_s``, ``first_merge_s.<robot>``,
+scenario's ``center_error.magnitude_m`` and ``network.latency_s``, every run parameter as
+``param.<key>`` (:func:`circsim.sim.run_params`, e.g. ``param.merger.nu_min``: a ``--set`` shows here),
+``first_merge_s.<robot>``,
 ``first_merge_arc_deg.<robot>``, ``first_merge_s.mean`` / ``first_merge_arc_deg.mean`` (over the
 robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
 ``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
@@ -195,12 +197,24 @@ class HypothesisStats(Observer):
                 "top_error_deg.median": statistics.median(self.top_errors) if self.top_errors else None}
 
 
+def _flat_params(d: dict, prefix: str) -> dict:
+    """Nested run parameters as ``prefix.key.sub`` columns; lists as JSON text."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat_params(v, f"{prefix}{k}.") if v else {f"{prefix}{k}": "{}"})
+        else:
+            out[f"{prefix}{k}"] = json.dumps(v) if isinstance(v, list | tuple) else v
+    return out
+
+
 def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     """The tidy row of one run record (:meth:`circsim.metrics.RunResult.to_dict`)."""
     row = {"scenario": rec["scenario"], "seed": rec["seed"]}
     row.update({k: v for k, v in task.grid})
     row["center_error.magnitude_m"] = sc.center_error.magnitude_m
     row["network.latency_s"] = sc.network.latency_s
+    row.update(_flat_params(rec["params"], "param."))
     robots = rec["robots"]
     for name, r in robots.items():
         row[f"first_merge_s.{name}"] = r["first_merge_s"]

@@ -154,13 +154,25 @@ def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]
     else:
         return []
     y, img = save_map(merged, out)
-    png = save_overlay(layers, [m.name for m in maps], out.with_name(out.name + "_overlay.png"))
+    png = save_overlay(layers, [m.name for m in maps], y.with_name(y.stem + "_overlay.png"))
     return [y, img, png]
+
+
+def output_dir(path: Path, option: str) -> None:
+    """Make the folder ``path`` and check it is writable, before any work (one-line error otherwise)."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".merger-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise UsageError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
 
 
 def cmd_merge(args) -> int:
     params = params_from(args)
     maps = merge_inputs(args.maps, args.center)
+    output_dir(args.output.parent, "-o")
     res = merge_team(maps, params)
     report_merge(res, args.json)
     written = write_merge(res, maps, args.output, args.force)
@@ -204,6 +216,7 @@ def cmd_demo(args) -> int:
     if radius <= 0:
         raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
     out = args.output
+    output_dir(out, "-o")
     maps, poses = [], []
     for name, a in zip(names, starts, strict=True):
         pose = robot_pose_on_circle(a, radius, center, yaw_offset_deg=rng.uniform(-40, 40))
@@ -231,6 +244,9 @@ def main(argv=None) -> int:
         return {"align": cmd_align, "merge": cmd_merge, "demo": cmd_demo}[args.cmd](args)
     except (UsageError, MapFileError, ValueError) as e:
         print(f"merger: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # a file the user named cannot be read or written
+        print(f"merger: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("merger: interrupted", file=sys.stderr)

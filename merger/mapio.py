@@ -87,7 +87,12 @@ def read_metadata(path) -> dict:
 def read_image(path: Path, yaml_path: Path) -> np.ndarray:
     if not path.is_file():
         raise MapFileError(f"{yaml_path}: key 'image': file {path} does not exist")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it, in one line
+    try:
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise MapFileError(f"{path}: not a readable image (PGM, PNG, ...)")
     if img.ndim == 3:  # map_server averages colour channels (alpha ignored)

@@ -36,13 +36,13 @@ def test_align_json(saved, capsys):
     assert out["verification"]["accepted"] and out["verification"]["support"] >= 150
 
 
-def test_merge_writes_map_and_overlay(saved, capsys):
+@pytest.mark.parametrize("name", ["merged", "merged.yaml"])
+def test_merge_writes_map_and_overlay(saved, capsys, name, tmp_path):
     d, paths, centers, truth = saved
-    out = d / "merged"
-    rc = main(["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(out)])
+    rc = main(["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / name)])
     text = capsys.readouterr().out
     assert rc == 0, text
-    assert (d / "merged.yaml").exists() and (d / "merged.pgm").exists() and (d / "merged_overlay.png").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["merged.pgm", "merged.yaml", "merged_overlay.png"]
     assert "chosen" in text
 
 
@@ -52,6 +52,8 @@ def test_merge_writes_map_and_overlay(saved, capsys):
     (["merge", "{p0}", "{p1}", "--center", "0,0", "--center", "1,1", "--center", "2,2", "-o", "x"], "--center"),
     (["align", "{p0}"], "required"),
     (["align", "{p0}", "{p1}", "--center", "0,0", "--roi", "-3"], "--roi"),
+    (["merge", "{p0}", "{p1}", "--center", "0,0", "-o", "{p0}/out"], "cannot write"),  # a file, not a folder
+    (["demo", "-o", "{p0}/x"], "cannot write"),
 ])
 def test_user_errors_one_line_exit_2(saved, args, needle):
     d, paths, _, _ = saved
@@ -59,6 +61,16 @@ def test_user_errors_one_line_exit_2(saved, args, needle):
     r = subprocess.run([sys.executable, "-m", "merger.cli", *args], capture_output=True, text=True, cwd=d)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and needle in r.stderr and "Traceback" not in r.stderr
+
+
+def test_corrupt_image_is_one_line(tmp_path):
+    """OpenCV's own log line about an unreadable image is silenced: the user sees our one line."""
+    (tmp_path / "g.pgm").write_bytes(b"P5\n10 10\n255\nxx")
+    (tmp_path / "g.yaml").write_text("image: g.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    r = subprocess.run([sys.executable, "-m", "merger.cli", "align", "g.yaml", "g.yaml", "--center", "0,0"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "g.pgm: not a readable image" in r.stderr, r.stderr
 
 
 def test_demo_runs(tmp_path, capsys):

@@ -142,6 +142,17 @@ def test_cli_offline_writes_csv_json_and_prints_the_thesis_column(tmp_path, caps
     assert (out / "maps" / "scene1" / "seed1" / "phi3" / "Lyon.yaml").exists()
 
 
+def test_cli_offline_and_sweep_unwritable_out_is_exit_2_before_any_run(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for args in (["offline", "scene1", "--out", str(afile / "x")],
+                 ["offline", "scene1", "--calibrate", "--out", str(afile / "x")],
+                 ["sweep", "scene1", "--grid", "center_error=0,0.1", "--out", str(afile)]):
+        assert main(args + ["--quiet"]) == 2, args
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "--out" in err and "cannot write" in err, err
+
+
 def test_cli_offline_bad_method_is_exit_2(capsys):
     assert main(["offline", "scene1", "--methods", "ncc,sift"]) == 2
     err = capsys.readouterr().err.strip()

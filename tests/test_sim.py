@@ -181,6 +181,7 @@ def test_cli_run_json_has_every_field(tmp_path, capsys):
     (["run", "scene1", "--set", "novalue"], "key.path=value"),
     (["run", "scene1", "--rrd", "/proc/circsim-nope/run.rrd"], "cannot write the recording"),
     (["run", "scene1", "--json", "/proc/circsim-nope/m.json"], "cannot write the metrics JSON"),
+    (["run", "scene1", "--set", "robots.motion=offline"], "circsim offline scene1"),
 ])
 def test_cli_user_errors_exit_2_one_line(args, needle, capsys):
     assert main(args) == 2

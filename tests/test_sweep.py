@@ -87,6 +87,12 @@ def test_cli_sweep_writes_tables_and_resume_skips_finished_rows(tmp_path, capsys
         assert (out / f).stat().st_size > 0, f
     rows = read_rows(out / RUNS_JSONL)
     assert len(rows) == 4
+    # every run parameter is a column, --set overrides included, in the CSV too
+    header = (out / "runs.csv").read_text().splitlines()[0].split(",")
+    for r in rows:
+        assert r["param.duration_s"] == 3.0 and r["param.merger.roi_m"] == 3.0  # from --set
+        assert r["param.center_error.magnitude_m"] == r["center_error.magnitude_m"]
+    assert {"param.duration_s", "param.merger.nu_min", "param.network.jitter_s", "param.drift.xy_m_per_m"} <= set(header)
     # an interrupted sweep: drop two finished rows and tear the last line, as a kill would
     lines = (out / RUNS_JSONL).read_text().splitlines()
     (out / RUNS_JSONL).write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])

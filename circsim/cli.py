@@ -146,7 +146,8 @@ def cmd_run(args) -> int:
         from .record import RerunRecorder
 
         observers.append(RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn,
-                                       scan_log_hz=sc.output.scan_log_hz))
+                                       scan_log_hz=sc.output.scan_log_hz,
+                                       merged_log_period_s=sc.output.merged_log_period_s))
     res = Simulation(sc, observers).run()
     if rrd:
         res.outputs["rrd"] = str(rrd)

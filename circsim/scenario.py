@@ -31,6 +31,7 @@ from .validate import (
     integer,
     join,
     number,
+    optional,
     optional_path,
     registered,
     section,
@@ -166,6 +167,7 @@ class OutputSpec:
     rrd: str | None = None
     scan_log_hz: float = 2.0
     json: str | None = None
+    merged_log_period_s: float | None = None  # None: the SLAM publish period; 0: every accepted merge
 
 
 @dataclass(frozen=True)
@@ -293,7 +295,8 @@ _MERGER = section(MergerSettings, {
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
     "correct_tol_deg": _POS})
-_OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path})
+_OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
+                               "merged_log_period_s": optional(_NONNEG)})
 _TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
         "center_error", "network", "merger", "output")
 

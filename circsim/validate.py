@@ -88,6 +88,13 @@ def optional_path(v, path):
     return v
 
 
+def optional(check):
+    """``None`` (YAML null) or a value that passes ``check``."""
+    def f(v, path):
+        return None if v is None else check(v, path)
+    return f
+
+
 def seq(item, expected: str, min_len: int = 0, length: int | None = None):
     """A list (or tuple) whose items pass ``item``; returned as a tuple."""
     def check(v, path):

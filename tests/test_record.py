@@ -277,6 +277,19 @@ def test_overlay_fast_equals_overlay_rgb():
 
 
 # --- whole runs ---------------------------------------------------------------------------------------
+def test_every_accepted_merge_logged_with_merged_log_period_0(tmp_path):
+    """``output.merged_log_period_s: 0`` logs the merged map and overlay of every accepted merge."""
+    rrd, js = tmp_path / "all.rrd", tmp_path / "all.json"
+    assert main(["run", "scene1", "--set", "duration_s=6", "--set", "output.merged_log_period_s=0",
+                 "--rrd", str(rrd), "--json", str(js), "--quiet"]) == 0
+    rec, d = read_recording(rrd), json.loads(js.read_text())
+    assert sum(m["accepted"] for m in d["robots"].values()) > 3
+    for n, m in d["robots"].items():
+        assert len(rec.get(f"/world/robots/{n}/map/merged", [])) == m["accepted"]
+        assert len(rec.get(f"/merge/{n}/overlay", [])) == m["accepted"]
+
+
+
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("run")

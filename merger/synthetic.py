@@ -242,19 +242,24 @@ def arc_viewpoints(angle_deg: float, half_arc_deg: float, radius: float, center=
     return np.stack([center[0] + radius * np.cos(a), center[1] + radius * np.sin(a)], axis=1)
 
 
-def random_view_pair(seed: int):
+def random_view_pair(seed: int, scale: float = 1.0):
     """Two partial views of one generated room, seen from frames rotated by a random θ about nearly the
     same center, with varying overlap (viewpoint arcs 5–60°, up to 60° apart): the problems on which the
     fast search is compared with the reference (tests, ``benchmarks/agree_fast.py``).
 
+    ``scale`` grows the room (8 × 6 m at 1), the robots' circle, the laser's range and the ROI (3.2–8 m
+    at 1) together, for ROIs the fast search pools (≥ 192 cells).
     Returns ``(ref_grid, ref_center, moving_grid, moving_center, roi_m)``.
     """
+    s = float(scale)
     rng = np.random.default_rng(seed)
-    scene = room_scene(rng, n_boxes=int(rng.integers(0, 6)))
+    scene = room_scene(rng, room=(8.0 * s, 6.0 * s), room_center=(0.7 * s, 0.4 * s), n_boxes=int(rng.integers(0, 6)),
+                       pillar_offset=(1.4 * s, 0.9 * s), pillar_radius=0.15 * max(s, 1.0))
     theta, a0, yaw = rng.uniform(0, 360), rng.uniform(0, 360), rng.uniform(0, 2 * math.pi)
-    fa = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw)
-    fb = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw + math.radians(theta))
-    ga, ca = partial_view(scene, fa, arc_viewpoints(a0, rng.uniform(5, 60), 1.8, k=3), noise=0.002, rng=rng)
-    gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + rng.uniform(-60, 60), rng.uniform(5, 60), 1.8, k=3),
-                          noise=0.002, rng=rng)
-    return ga, ca, gb, cb, float(rng.uniform(3.2, 8.0))
+    fa = (rng.uniform(-1, 1) * s, rng.uniform(-1, 1) * s, yaw)
+    fb = (rng.uniform(-1, 1) * s, rng.uniform(-1, 1) * s, yaw + math.radians(theta))
+    view = {"size_m": 12.0 * s, "range_m": 5.6 * s, "beams": int(720 * max(1.0, s)), "noise": 0.002, "rng": rng}
+    ga, ca = partial_view(scene, fa, arc_viewpoints(a0, rng.uniform(5, 60), 1.8 * s, k=3), **view)
+    gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + rng.uniform(-60, 60), rng.uniform(5, 60), 1.8 * s, k=3),
+                          **view)
+    return ga, ca, gb, cb, float(rng.uniform(3.2, 8.0)) * s

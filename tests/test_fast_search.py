@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 import merger
 from merger.fast import fast_search
 from merger.grid import OccupancyGrid
+from merger.polar import pool_factor
 from merger.search import SEARCH_METHODS, RotationProblem, angle_diff_deg, reference_search
 from merger.similarity import measure_fn
 from merger.sparse import SparseEvaluator, fast_extract_roi
@@ -210,6 +211,16 @@ def test_fast_equals_reference_similarity(seed, theta, roi, arc_shift, arc):
 def test_fast_equals_reference_other_measures(seed, theta, roi, arc_shift, measure):
     ga, ca, gb, cb = two_views(seed, theta, arc_shift=arc_shift, arc=30.0)
     p = RotationProblem(ga, gb, ca, cb, roi, measure)
+    assert_same_answer(fast_search(p), reference_search(p))
+
+
+@settings(max_examples=3, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), roi=st.floats(9.6, 12.8), measure=st.sampled_from(MEASURES))
+def test_fast_equals_reference_with_a_pooled_polar_stage(seed, roi, measure):
+    """ROIs of 192 cells and more are max-pooled 2× before the polar stage: still the reference's answer."""
+    ga, ca, gb, cb, _ = random_view_pair(seed, scale=2.0)
+    p = RotationProblem(ga, gb, ca, cb, roi, measure)
+    assert pool_factor(p.n) >= 2
     assert_same_answer(fast_search(p), reference_search(p))
 
 

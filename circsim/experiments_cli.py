@@ -13,6 +13,8 @@ import json
 import sys
 from pathlib import Path
 
+from merger.mapio import ensure_output_dir
+
 
 def _scenario_args(p) -> None:
     p.add_argument("--seed", type=int, help="base seed (default: the scenario's); seed i is base + i")
@@ -54,23 +56,6 @@ def register_offline(sub) -> None:
     p.set_defaults(func=cmd_offline)
 
 
-class OutputError(ValueError):
-    """An output folder that cannot be made or written (one line, exit 2)."""
-
-
-def output_dir(path: Path | None, option: str = "--out") -> None:
-    """Make ``path`` (a folder) and check it is writable, before any work; raises :class:`OutputError`."""
-    if path is None:
-        return
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".circsim-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as e:
-        raise OutputError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
-
-
 def cmd_offline(args) -> int:
     from .cli import load_with_overrides
     from .offline import OfflineSettings
@@ -83,7 +68,8 @@ def cmd_offline(args) -> int:
                                ncc_score_min=args.score_min, search_method=args.search_method, full=args.full)
     bases = [load_with_overrides(s, args.seed, args.set) for s in args.scenarios]
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
-    output_dir(args.out)
+    if args.out:
+        ensure_output_dir(args.out, "--out")
     if args.calibrate:
         return _calibrate(scenarios, settings, args)
     return _offline(scenarios, settings, args)
@@ -248,7 +234,8 @@ def cmd_sweep(args) -> int:
     base = load_with_overrides(args.scenario, args.seed, args.set)
     axes = parse_grid(args.grid)
     tasks = plan(base, axes, args.seeds)
-    output_dir(args.out)
+    if args.out:
+        ensure_output_dir(args.out, "--out")
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     if base.merger.method == "reference" and todo and not args.quiet:
         print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import align
-from .mapio import MapFileError, load_map, save_map, save_overlay
+from .mapio import MapFileError, ensure_output_dir, load_map, save_map, save_overlay
 from .search import SEARCH_METHODS
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
@@ -158,21 +158,10 @@ def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]
     return [y, img, png]
 
 
-def output_dir(path: Path, option: str) -> None:
-    """Make the folder ``path`` and check it is writable, before any work (one-line error otherwise)."""
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".merger-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as e:
-        raise UsageError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
-
-
 def cmd_merge(args) -> int:
     params = params_from(args)
     maps = merge_inputs(args.maps, args.center)
-    output_dir(args.output.parent, "-o")
+    ensure_output_dir(args.output.parent, "-o")
     res = merge_team(maps, params)
     report_merge(res, args.json)
     written = write_merge(res, maps, args.output, args.force)
@@ -216,7 +205,7 @@ def cmd_demo(args) -> int:
     if radius <= 0:
         raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
     out = args.output
-    output_dir(out, "-o")
+    ensure_output_dir(out, "-o")
     maps, poses = [], []
     for name, a in zip(names, starts, strict=True):
         pose = robot_pose_on_circle(a, radius, center, yaw_offset_deg=rng.uniform(-40, 40))

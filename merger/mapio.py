@@ -119,6 +119,19 @@ def load_map(path) -> OccupancyGrid:
     return OccupancyGrid(np.ascontiguousarray(states), meta["resolution"], tuple(meta["origin"][:2]))
 
 
+def ensure_output_dir(path, option: str) -> None:
+    """Make the folder ``path`` and check it is writable, before any work is done; a one-line
+    :class:`MapFileError` naming ``option`` and the folder otherwise."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as e:
+        raise MapFileError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
+
+
 def save_map(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> tuple[Path, Path]:
     """Write ``grid`` as map_saver does: ``<stem>.yaml`` and ``<stem>.pgm`` (free 254, occupied 0,
     unknown 205). ``path`` may name the YAML or the stem. Returns (yaml path, image path)."""

@@ -197,7 +197,9 @@ def footprint(ref: OccupancyGrid, g: OccupancyGrid, theta: float, center_g, cent
     """The part of :func:`canvas` that ``g`` rotated by θ covers: an all-unknown grid on ``ref``'s lattice.
 
     Every cell of a canvas outside it is unknown after :func:`warp_grid` (its centre lies outside the
-    rotated grid), so ``paste(warp_grid(g, …, footprint), canvas)`` equals ``warp_grid(g, …, canvas)``.
+    rotated grid), so ``paste(warp_grid(g, …, footprint), canvas)`` equals ``warp_grid(g, …, canvas)``,
+    except on a cell whose source point lies exactly on a cell border: there the nearest cell is a tie,
+    decided by the rounding of that grid's own cell-centre floats (a test bounds this).
     """
     return _lattice_box(ref, *_placed_bounds(g, theta, center_g, center_ref))
 

@@ -8,7 +8,6 @@ prints it and exits with 2.
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from pathlib import Path
@@ -156,9 +155,10 @@ def save_first_merge(r, path: Path, *, margin_cells: int = 10, scale: int = 2) -
 def _write_offline(out: Path, rows, seed_results, settings, search, args) -> None:
     from dataclasses import asdict
 
-    flat = [{k: (json.dumps(v) if isinstance(v, list) else v) for k, v in r.items()} for r in rows]
-    _write_csv(out / "offline.csv", flat)
-    _write_csv(out / "offline_seeds.csv", [r.to_dict() for r in seed_results])
+    from .sweep import write_csv
+
+    write_csv(rows, out / "offline.csv")
+    write_csv([r.to_dict() for r in seed_results], out / "offline_seeds.csv")
     meta = {"command": "circsim " + " ".join(sys.argv[1:]) if sys.argv else "", "settings": asdict(settings),
             "search_method": search, "scenarios": args.scenarios, "seeds": args.seeds, "set": args.set}
     (out / "offline.json").write_text(json.dumps(
@@ -181,17 +181,6 @@ def _calibrate(scenarios, settings, args) -> int:
     if args.out:
         (args.out / "ncc_calibration.json").write_text(json.dumps({"calibration": cal, "hypotheses": rows}))
     return 0
-
-
-def _write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        path.write_text("")
-        return
-    cols = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        w.writerows(rows)
 
 
 # --- circsim sweep -----------------------------------------------------------------------------------

@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
@@ -319,7 +319,8 @@ class SeedResult:
             self.rejected_correct += 1
 
     def to_dict(self) -> dict:
-        d = {k: v for k, v in asdict(self).items() if k not in ("merge_ms", "first_merge")}
+        # plain fields only: asdict would deep-copy first_merge (every map of a merge) to drop it
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("merge_ms", "first_merge")}
         d["merge_ms_median"] = statistics.median(self.merge_ms) if self.merge_ms else None
         return d
 

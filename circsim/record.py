@@ -70,6 +70,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from merger.grid import known_bounds
 from merger.overlay import colours_for, overlay_rgb
 
 from .events import MergeCycle, Observer, RobotTick
@@ -604,12 +605,12 @@ def known_window(layers: list[np.ndarray], margin: int = CROP_MARGIN_CELLS) -> t
     known = np.zeros(layers[0].shape, bool)
     for states in layers:
         known |= states != 0
-    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
-    if not rows.size:
-        return slice(0, known.shape[0]), slice(0, known.shape[1])
     h, w = known.shape
-    return (slice(max(rows[0] - margin, 0), min(rows[-1] + 1 + margin, h)),
-            slice(max(cols[0] - margin, 0), min(cols[-1] + 1 + margin, w)))
+    box = known_bounds(known)
+    if box is None:
+        return slice(0, h), slice(0, w)
+    r0, r1, c0, c1 = box
+    return slice(max(r0 - margin, 0), min(r1 + margin, h)), slice(max(c0 - margin, 0), min(c1 + margin, w))
 
 
 def _grid_map(grid, z: float) -> rr.GridMap:

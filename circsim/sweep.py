@@ -426,7 +426,12 @@ def _columns(rows: list[dict]) -> list[str]:
     return list(cols)
 
 
-def _write_csv(rows: list[dict], path: Path) -> None:
+def write_csv(rows: list[dict], path: Path) -> None:
+    """Rows as CSV: columns are the union of their keys in first-seen order; None is empty, lists and
+    dicts are JSON; no rows, an empty file."""
+    if not rows:
+        path.write_text("")
+        return
     cols = _columns(rows)
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=cols, restval="")
@@ -440,8 +445,8 @@ def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]
     """runs.csv and summary.csv (one row per run / per combination); runs.parquet when pyarrow is
     installed (the ``sweep`` extra). Columns are the union of all rows' keys, in first-seen order."""
     paths = [out / RUNS_CSV, out / SUMMARY_CSV]
-    _write_csv(rows, paths[0])
-    _write_csv(summary, paths[1])
+    write_csv(rows, paths[0])
+    write_csv(summary, paths[1])
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq

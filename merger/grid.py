@@ -157,11 +157,10 @@ class OccupancyGrid:
         """The smallest block of this grid holding every known cell, on the same cell lattice (itself
         when nothing can be cut). Every cell outside it is unknown, so resampling the block gives the
         same map as resampling the whole grid, on fewer cells."""
-        rows = np.flatnonzero(self.states.any(axis=1))
-        if rows.size == 0:
+        box = known_bounds(self.states)
+        if box is None:
             return self
-        cols = np.flatnonzero(self.states.any(axis=0))
-        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+        r0, r1, c0, c1 = box
         if (r0, c0, r1, c1) == (0, 0, self.height, self.width):
             return self
         return OccupancyGrid(self.states[r0:r1, c0:c1], self.resolution,
@@ -177,6 +176,16 @@ class OccupancyGrid:
         return (f"OccupancyGrid({self.height}x{self.width}, res={self.resolution:g} m, "
                 f"origin=({self.origin[0]:g}, {self.origin[1]:g}), occupied={c['occupied']}, "
                 f"free={c['free']})")
+
+
+def known_bounds(known: np.ndarray) -> tuple[int, int, int, int] | None:
+    """(first row, end row, first column, end column) of the non-zero cells of a 2-D array (states or a
+    known mask); None when there is none."""
+    rows = np.flatnonzero(known.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(known.any(axis=0))
+    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
 
 
 def _logit(p: float) -> float:

@@ -252,14 +252,6 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
                        steps, checks, not failed, "; ".join(failed))
 
 
-def evaluate_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
-                   reuse: dict | None = None, warps: Warps | None = None):
-    """Align one order and verify it: (:class:`OrderResult`, layers on map 0's frame)."""
-    warps = Warps(maps) if warps is None else warps
-    theta0, steps = align_order(maps, order, params, reuse, warps)
-    return _order_result(maps, order, params, theta0, steps, warps), place_on_frame0(maps, theta0, warps)
-
-
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
                reuse: dict | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).

@@ -102,12 +102,14 @@ def summary(res) -> str:
              f"(realtime factor {d['realtime_factor'] or float('inf'):.1f})"
              + ("  [INTERRUPTED]" if d["interrupted"] else ""), "",
              f"{'robot':<10} {'first merge s':>13} {'arc deg':>8} {'cycles':>7} {'accepted':>9} "
-             f"{'false':>6} {'rej.correct':>11}  final angle errors (deg)"]
+             f"{'false':>6} {'rej.correct':>11}  final errors per teammate (angle deg / translation cm)"]
     for n, r in d["robots"].items():
         fm = "—" if r["first_merge_s"] is None else f"{r['first_merge_s']:.1f}"
         arc = "—" if r["first_merge_arc_deg"] is None else f"{r['first_merge_arc_deg']:.1f}"
         errs = r["final_angle_error_deg"] or {}
-        e = ", ".join(f"{k} {v:.2f}" for k, v in errs.items() if k != n) or "—"
+        t_errs = r.get("final_translation_error_m") or {}
+        e = ", ".join(f"{k} {v:.2f}° / " + ("—" if k not in t_errs else f"{100 * t_errs[k]:.1f} cm")
+                      for k, v in errs.items() if k != n) or "—"
         lines.append(f"{n:<10} {fm:>13} {arc:>8} {r['cycles']:>7} {r['accepted']:>9} {r['false_merges']:>6} "
                      f"{r['rejected_correct']:>11}  {e}")
     mc = d["merge_cycle_ms"]

@@ -10,7 +10,7 @@ center are in its own map frame M_i (its start pose in W), see DESIGN.md.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from merger.grid import OccupancyGrid
 from merger.team import TeamMergeResult
@@ -33,8 +33,13 @@ class MergeCycle:
     """One merge cycle of one robot, judged against ground truth.
 
     truth_deg : true rotation of every map onto the merging robot's frame (θ*_ij = yaw_j(0) − yaw_i(0)).
-    correct : for the accepted hypothesis (or, if none, the best one): every angle error ≤ tolerance.
-    angle_error_deg : per teammate, |wrap(θ − θ*)| of that hypothesis.
+    correct : for the accepted hypothesis (or, if none, the best one): every angle error
+        ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
+    angle_error_deg : per map, |wrap(θ − θ*)| of that hypothesis.
+    truth_translation_m : true translation of every map onto the merging robot's frame about the given
+        centers, t*_ij = R(θ*_ij)·e_j − e_i (e_k: robot k's center error in its map frame), metres.
+    translation_error_m : per map, |t − t*| (Euclidean, metres) of that hypothesis (x_i = c_i + t +
+        R(θ)(x_j − c_j)); a rotation-only search has t = 0, so its error is |t*|.
     """
 
     t: float
@@ -46,6 +51,8 @@ class MergeCycle:
     angle_error_deg: dict[str, float]
     first_correct: bool  # this cycle is the robot's first accepted correct merge
     false_merge: bool  # accepted but not correct
+    truth_translation_m: dict[str, tuple[float, float]] = field(default_factory=dict)
+    translation_error_m: dict[str, float] = field(default_factory=dict)
 
 
 class Observer:

@@ -2,10 +2,19 @@
 
 * ``first_merge_s[robot]`` — simulated seconds to that robot's first accepted, correct merge of all maps.
 * ``first_merge_arc_deg[robot]`` — degrees it had travelled on its circle by then.
-* ``false_merges`` — accepted alignments that are not correct (any angle error > ``correct_tol_deg``).
+* ``false_merges`` — accepted alignments that are not correct (any angle error > ``correct_tol_deg`` or
+  any translation error > ``correct_tol_m``).
 * ``rejected_correct`` — merge cycles whose best hypothesis was correct but rejected.
 * ``merge_cycle_ms`` — wall time of one merge cycle (all orders + verification): median and p95.
 * ``realtime_factor`` — simulated seconds per wall second of the run.
+
+Beyond DESIGN.md, per robot: ``final_angle_error_deg`` and ``final_translation_error_m`` (per map, of the
+alignment held at the end) and ``first_merge_translation_error_m`` (the largest translation error of the
+first correct merge). An alignment of map j onto map i is x_i = c_i + t + R(θ)(x_j − c_j); its angle error
+is |wrap(θ − θ*_ij)| and its translation error the Euclidean |t − t*_ij| in metres, with
+t*_ij = R(θ*_ij)·e_j − e_i (e_k: robot k's center error, see :func:`circsim.sim.truth_translation`). A
+rotation-only search (``window_m: 0``) finds t = 0, so its translation error is |t*|: the misplacement
+that a wrong center causes.
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ from merger.search import angle_diff_deg
 from .events import MergeCycle, Observer
 
 JUDGE_EPS_DEG = 1e-9
+JUDGE_EPS_M = 1e-9
 
 
 def judge(theta_deg: dict[str, float], truth_deg: dict[str, float], tol_deg: float):
@@ -31,6 +41,29 @@ def judge(theta_deg: dict[str, float], truth_deg: dict[str, float], tol_deg: flo
     return errors, all(e <= tol_deg + JUDGE_EPS_DEG for e in errors.values())
 
 
+def judge_translation(translation_m: dict[str, tuple[float, float]], truth_m: dict[str, tuple[float, float]],
+                      tol_m: float):
+    """Translation errors |t − t*| (Euclidean, metres) per map and whether every one is within ``tol_m``.
+
+    Like :func:`judge`, 1e-9 m of floating-point noise is allowed: a translation on the search's cell
+    lattice exactly ``tol_m`` from the truth counts as within it."""
+    errors = {k: math.hypot(float(translation_m[k][0]) - float(truth_m[k][0]),
+                            float(translation_m[k][1]) - float(truth_m[k][1])) for k in translation_m}
+    return errors, all(e <= tol_m + JUDGE_EPS_M for e in errors.values())
+
+
+def judge_placement(theta_deg: dict[str, float], translation_m: dict[str, tuple[float, float]],
+                    truth_deg: dict[str, float], truth_m: dict[str, tuple[float, float]], tol_deg: float,
+                    tol_m: float):
+    """Angle errors, translation errors and whether the hypothesis is correct: every angle error
+    ≤ ``tol_deg`` and every translation error ≤ ``tol_m`` (:func:`judge`, :func:`judge_translation`).
+    A map missing from ``translation_m`` has t = (0, 0) (a rotation-only search)."""
+    angle_errors, angles_ok = judge(theta_deg, truth_deg, tol_deg)
+    t = {k: tuple(translation_m.get(k, (0.0, 0.0))) for k in theta_deg}
+    t_errors, t_ok = judge_translation(t, truth_m, tol_m)
+    return angle_errors, t_errors, angles_ok and t_ok
+
+
 @dataclass
 class RobotMetrics:
     first_merge_s: float | None = None
@@ -40,6 +73,8 @@ class RobotMetrics:
     false_merges: int = 0
     rejected_correct: int = 0
     final_angle_error_deg: dict[str, float] | None = None  # of the alignment held at the end
+    final_translation_error_m: dict[str, float] | None = None  # of the alignment held at the end
+    first_merge_translation_error_m: float | None = None  # largest over the maps, at the first correct merge
     maps_published: int = 0
     maps_received: int = 0  # teammates' maps taken (newer than the one held)
     maps_stale: int = 0  # teammates' maps dropped: not newer than the one held (out of order, repeated)
@@ -119,10 +154,12 @@ class MetricsObserver(Observer):
         if cycle.result.accepted:
             m.accepted += 1
             m.final_angle_error_deg = dict(cycle.angle_error_deg)
+            m.final_translation_error_m = dict(cycle.translation_error_m)
             if cycle.false_merge:
                 m.false_merges += 1
             elif m.first_merge_s is None:
                 m.first_merge_s = cycle.t
                 m.first_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)
+                m.first_merge_translation_error_m = max(cycle.translation_error_m.values(), default=0.0)
         elif cycle.correct:
             m.rejected_correct += 1

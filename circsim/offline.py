@@ -13,7 +13,8 @@ once, in robot 1's frame (the thesis merged the saved maps offline), with each m
   whole maps passes ``nu_min`` and ``min_support`` (the scenario's ``merger`` settings).
 
 For every method and seed we report the smallest φ at which the cycle's chosen (accepted) hypothesis
-is correct (all angle errors ≤ ``correct_tol_deg`` against θ*_1j = yaw_j(0) − yaw_1(0)), how many
+is correct (all angle errors ≤ ``correct_tol_deg`` against θ*_1j = yaw_j(0) − yaw_1(0) and all
+translation errors ≤ ``correct_tol_m`` against t*_1j = R(θ*_1j)·e_j − e_1, as online), how many
 order hypotheses had a ~180° error (|err − 180°| ≤ 10° for some map) and how many of those the
 verification rejected, and any accepted false merge. A method stops at its first valid correct merge
 unless ``full`` is set (then the 180° counts cover every φ up to max_deg).
@@ -49,9 +50,10 @@ from merger.search import angle_diff_deg
 from merger.team import MapInput, MergeParams, TeamMergeResult, merge_team
 
 from .laser import scan as laser_scan
-from .metrics import judge
+from .metrics import judge, judge_placement
 from .motion import offline_schedule, trajectories
 from .scenario import Scenario
+from .sim import truth_translation
 from .slam import Slam
 from .world import World
 
@@ -111,15 +113,16 @@ def default_search_method() -> str:
 
 
 def method_params(sc: Scenario, method: str, settings: OfflineSettings) -> MergeParams:
-    """MergeParams of one offline method (ROI, ν_min and min_support from the scenario)."""
+    """MergeParams of one offline method (ROI, translation window, refinement, ν_min and min_support from
+    the scenario)."""
     m = sc.merger
     search = settings.search_method or default_search_method()
     if method == "ncc":
         return MergeParams(roi_m=m.roi_m, measure="ncc", method=search, verification="roi_score",
-                           score_min=settings.ncc_score_min)
+                           score_min=settings.ncc_score_min, window_m=m.window_m, refine=m.refine)
     if method == "similarity":
         return MergeParams(roi_m=m.roi_m, measure="similarity", method=search, verification="whole_map",
-                           nu_min=m.nu_min, min_support=m.min_support)
+                           nu_min=m.nu_min, min_support=m.min_support, window_m=m.window_m, refine=m.refine)
     raise ValueError(f"unknown offline method {method!r}; expected one of {', '.join(METHODS)}")
 
 
@@ -175,6 +178,7 @@ class OfflineBench:
         self.slams: dict[str, Slam] = {}
         self.laser_rngs: dict[str, np.random.Generator] = {}
         self.centers: dict[str, tuple[float, float]] = {}
+        self.center_errors: dict[str, tuple[float, float]] = {}
         for n in self.names:
             rng = np.random.default_rng(next(streams))
             self.slams[n] = (ArcDriftSlam(sc.slam, self.start_poses[n], rng, sc.robots.radius_m)
@@ -182,10 +186,14 @@ class OfflineBench:
             self.laser_rngs[n] = np.random.default_rng(next(streams))
             c = self.slams[n].true_to_map(np.array(sc.world.center, np.float64))
             self.centers[n] = (float(c[0]) + errors[n][0], float(c[1]) + errors[n][1])
+            self.center_errors[n] = (self.centers[n][0] - float(c[0]), self.centers[n][1] - float(c[1]))
         ref = self.names[0]
         # θ*_1j = yaw_j(0) − yaw_1(0): rotation of map j onto map 1 (robot 1's frame)
         self.truth_deg = {n: math.degrees(self.start_poses[n].yaw - self.start_poses[ref].yaw) % 360.0
                           for n in self.names}
+        # t*_1j = R(θ*_1j)·e_j − e_1: translation of map j onto map 1 about the given centers
+        self.truth_translation_m = {n: truth_translation(self.truth_deg[n], self.center_errors[ref],
+                                                         self.center_errors[n]) for n in self.names}
 
     def _scan_all(self, displacement_deg: float) -> None:
         sc = self.scenario
@@ -229,6 +237,8 @@ class OrderJudgement:
     scores: dict[str, float]
     reason: str
     steps: tuple[dict, ...] = ()  # per alignment: angle, its error, ROI score, runner-up peak and its error
+    translation_m: dict[str, tuple[float, float]] = field(default_factory=dict)
+    translation_error_m: dict[str, float] = field(default_factory=dict)  # |t − t*| (empty: not judged)
 
 
 @dataclass(frozen=True)
@@ -261,10 +271,19 @@ class PhiRecord:
 
 
 def judge_cycle(res: TeamMergeResult, truth_deg: dict[str, float], tol_deg: float, *, scene: str, seed: int,
-                method: str, phi_deg: float, tol_180_deg: float = TOL_180_DEG) -> PhiRecord:
+                method: str, phi_deg: float, tol_180_deg: float = TOL_180_DEG,
+                truth_m: dict[str, tuple[float, float]] | None = None, tol_m: float | None = None) -> PhiRecord:
+    """Every order judged against the truth: angles always; translations too when ``truth_m`` (t*_1j per
+    map, metres) and ``tol_m`` are given (correct: every angle error ≤ ``tol_deg`` and every translation
+    error ≤ ``tol_m``, as online: :func:`circsim.metrics.judge_placement`)."""
     orders = []
     for o in res.orders:
-        errors, correct = judge(o.theta_deg, {k: truth_deg[k] for k in o.theta_deg}, tol_deg)
+        t_found = {k: tuple(o.translation(k)) for k in o.theta_deg}
+        if truth_m is None or tol_m is None:
+            errors, correct = judge(o.theta_deg, {k: truth_deg[k] for k in o.theta_deg}, tol_deg)
+            t_errors = {}
+        else:
+            errors, t_errors, correct = judge_placement(o.theta_deg, t_found, truth_deg, truth_m, tol_deg, tol_m)
         first = o.order[0]
         steps = []
         for name, al in o.steps:  # step angles are onto the order's first map: θ*_fk = θ*_0k − θ*_0f
@@ -276,7 +295,7 @@ def judge_cycle(res: TeamMergeResult, truth_deg: dict[str, float], tol_deg: floa
                           if math.isfinite(al.runner_up_deg) else None})
         orders.append(OrderJudgement(o.order, dict(o.theta_deg), errors, o.accepted, correct,
                                      any(abs(e - 180.0) <= tol_180_deg for e in errors.values()),
-                                     dict(o.nu), o.reason, tuple(steps)))
+                                     dict(o.nu), o.reason, tuple(steps), t_found, t_errors))
     chosen = next((j for o, j in zip(res.orders, orders, strict=True) if o is res.chosen), None)
     return PhiRecord(scene, seed, method, phi_deg, res.accepted, bool(chosen and chosen.correct),
                      bool(chosen and not chosen.correct), chosen.order if chosen else None, tuple(orders),
@@ -348,7 +367,8 @@ def run_offline(sc: Scenario, settings: OfflineSettings = OfflineSettings(), *,
         for m in list(active):
             res = merge_team(inputs, params[m])
             rec = judge_cycle(res, bench.truth_deg, sc.merger.correct_tol_deg, scene=sc.name, seed=int(sc.seed),
-                              method=m, phi_deg=phi)
+                              method=m, phi_deg=phi, truth_m=bench.truth_translation_m,
+                              tol_m=sc.merger.correct_tol_m)
             results[m].add(rec, res)
             records.append(rec)
             if on_record:

@@ -21,16 +21,30 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
       robots/<robot>/map/slam_pose          Transform3D: SLAM pose estimate, every tick (+ static arrow)
       robots/<robot>/map/center_given       Points3D: the center it was given, labelled with its error
       robots/<robot>/map/merged             GridMap: its merged map when it accepts a merge (cropped*)
+      robots/<robot>/centers/given          Points3D in W (static): the center it was given, c_i drawn via
+                                            its start pose; the true center is /world/center
+      robots/<robot>/centers/placed         Points3D in W, at every accepted merge: per teammate j, where the
+                                            accepted alignment puts j's given center (c_i + t_ij in M_i)
+      robots/<robot>/centers/placed_error   LineStrips3D in W, same times: from each placed point to where
+                                            j's given center truly is (robots/<j>/centers/given); its
+                                            length is the translation error |t_ij − t*_ij|
     /merge/<robot>/overlay                  Image: the thesis colour overlay of the aligned maps (cropped*)
     /plots/<robot>/omega                    Scalars: score (ω̃ by default) of every alignment step of every order
     /plots/<robot>/nu                       Scalars: ν of the cycle's top hypothesis per pair, and ν_min
     /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
     /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
+    /plots/<robot>/translation_error_m      Scalars: |t − t*| (metres) per teammate, at every accepted merge
     /plots/<robot>/cycle_ms                 Scalars: merge cycle wall time
     /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
     /run/scenario, /run/metrics             TextDocument (static): the scenario and the final metrics JSON
 
 (*) cropped to the known cells plus 1 m (:func:`known_window`); a GridMap's translation is the crop's corner.
+
+Centers: an alignment of map j onto map i is x_i = c_i + t + R(θ)(x_j − c_j), so j's given center c_j lands
+at c_i + t in M_i. We draw, per robot i and teammate j, that point (in W, via i's start pose) beside the
+true position of j's given center (j's own ``centers/given``): the segment between them is exactly the
+translation error, whatever the rotation (a rigid map preserves distances). We do not draw an "implied
+common center": with both centers wrong, an alignment fixes only their relative placement.
 
 A plot is one entity with one series per value (names and colours in a static ``SeriesLines``), so a
 merge cycle costs one ``rr.log`` per plot.
@@ -148,6 +162,8 @@ class RerunRecorder(Observer):
         self.merged_pending: dict[str, tuple[int, MergeCycle]] = {}
         self.series: dict[str, tuple[str, ...]] = {}
         self.centers_logged: dict[str, tuple[float, float]] = {}
+        self.start_poses = {n: tuple(float(v) for v in sim.start_poses[n][:3]) for n in self.names}
+        self.centers_given = {n: tuple(map(float, sim.centers_given[n])) for n in self.names}
         self.poses: dict[str, list[tuple]] = {n: [] for n in self.names}
         self.pose_batch_t0: float | None = None
 
@@ -184,6 +200,7 @@ class RerunRecorder(Observer):
         self.published[robot] += 1
         i = self.names.index(robot)
         self.rec.log(f"world/robots/{_part(robot)}/map/local", _grid_map(grid, MAP_Z * (i + 1)))
+        self.centers_given[robot] = tuple(map(float, center_given))
         if self.centers_logged.get(robot) != tuple(center_given):
             self._log_center(robot, center_given, center_true)
         c = grid.count()
@@ -207,8 +224,13 @@ class RerunRecorder(Observer):
         order = ",".join(top.order)
         if res.accepted:
             verdict = "FALSE MERGE" if c.false_merge else "correct"
+            tr = ", ".join(f"{k} ({x:+.3f}, {y:+.3f}) m" for k in top.theta_deg if k != n
+                           for x, y in [top.translation(k)])
+            t_errs = ", ".join(f"{k} {100 * v:.1f} cm" for k, v in c.translation_error_m.items() if k != n)
             self._text(n, "ERROR" if c.false_merge else "INFO",
-                       f"accepted merge (order {order}): θ {thetas}; ν {nus}; angle error {errs} → {verdict}")
+                       f"accepted merge (order {order}): θ {thetas}; t {tr}; ν {nus}; angle error {errs}"
+                       + (f"; translation error {t_errs}" if t_errs else "") + f" → {verdict}")
+            self._log_placed_centers(c)
             if c.first_correct:
                 arc = f", arc {self.arc_of(n, c.t):.1f}°" if self.arc_of else ""
                 self._text(n, "INFO", f"FIRST CORRECT MERGE of all maps at {c.t:.1f} s{arc}")
@@ -320,9 +342,36 @@ class RerunRecorder(Observer):
     def _log_center(self, robot: str, given, true) -> None:
         err = math.hypot(given[0] - true[0], given[1] - true[1])
         self.centers_logged[robot] = tuple(given)
+        label = f"{robot}'s center (error {err * 100:.1f} cm)"
         self.rec.log(f"world/robots/{_part(robot)}/map/center_given",
                      rr.Points3D([[given[0], given[1], SCAN_Z]], radii=0.05, colors=[self.colours[robot]],
-                                 labels=[f"{robot}'s center (error {err * 100:.1f} cm)"]), static=True)
+                                 labels=[label]), static=True)
+        gx, gy = _from_frame(given, self.start_poses[robot])
+        self.rec.log(f"world/robots/{_part(robot)}/centers/given",
+                     rr.Points3D([[gx, gy, SCAN_Z]], radii=0.05, colors=[self.colours[robot]], labels=[label]),
+                     static=True)
+
+    def _log_placed_centers(self, c: MergeCycle) -> None:
+        """Where robot i's accepted alignment puts each teammate's given center (c_i + t_ij in M_i), in W,
+        and the segment to where that center truly is (its length is the translation error)."""
+        n, top = c.robot, c.result.top
+        pose, (cx, cy) = self.start_poses[n], self.centers_given[n]
+        mates = [k for k in top.theta_deg if k != n and k in self.centers_given]
+        if not mates:
+            return
+        placed, strips, labels = [], [], []
+        for k in mates:
+            tx, ty = top.translation(k)
+            px, py = _from_frame((cx + tx, cy + ty), pose)
+            qx, qy = _from_frame(self.centers_given[k], self.start_poses[k])
+            placed.append([px, py, SCAN_Z])
+            strips.append([[px, py, SCAN_Z], [qx, qy, SCAN_Z]])
+            err = c.translation_error_m.get(k)
+            labels.append(f"{k}'s center placed by {n}" + ("" if err is None else f" (off {100 * err:.1f} cm)"))
+        colours = [self.colours.get(k, _GREY) for k in mates]
+        base = f"world/robots/{_part(n)}/centers"
+        self.rec.log(f"{base}/placed", rr.Points3D(placed, radii=0.035, colors=colours, labels=labels))
+        self.rec.log(f"{base}/placed_error", rr.LineStrips3D(strips, colors=colours, radii=0.008))
 
     def _log_scan(self, k: RobotTick, rays: bool) -> None:
         x, y, yaw = k.true_pose
@@ -359,6 +408,10 @@ class RerunRecorder(Observer):
         if res.accepted:
             self._series(f"{base}/angle_error_deg", [(f"{m} angle error (°)", e, self.colours.get(m))
                                                      for m, e in c.angle_error_deg.items() if m != n])
+            t_errs = [(f"{m} translation error (m)", e, self.colours.get(m))
+                      for m, e in c.translation_error_m.items() if m != n]
+            if t_errs:
+                self._series(f"{base}/translation_error_m", t_errs)
         self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
 
     def _log_merged(self, c: MergeCycle, step: int, now: float) -> None:
@@ -405,7 +458,9 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
         name="World (top-down, y up)", origin="/world",
         # the maps have views of their own: drawn here (opaque in the 0.41 web viewer, whatever the
         # opacity) they hid the world under three rotated rectangles of unknown cells
-        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/{m}" for p in parts for m in ("merged", "local")]],
+        # center_given is drawn there as centers/given (in W), once
+        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/{m}" for p in parts
+                                    for m in ("merged", "local", "center_given")]],
         eye_controls=_top_down(cx, cy, 11.0))
 
     def map_view(n, p, what, title):
@@ -424,7 +479,8 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
         ts = [rrb.TimeSeriesView(name=f"{n}: {title}", origin=f"/plots/{p}/{what}")
               for what, title in (("omega", "ω̃ of each alignment step, every order"),
                                   ("nu", "ν of the top hypothesis"), ("support", "support (agr̃ + dis)"),
-                                  ("angle_error_deg", "accepted angle error vs truth (°)"))]
+                                  ("angle_error_deg", "accepted angle error vs truth (°)"),
+                                  ("translation_error_m", "accepted translation error vs truth (m)"))]
         ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle wall time (ms)", origin=f"/plots/{p}/cycle_ms"))
         return rrb.Vertical(*ts, name=n)
 
@@ -638,6 +694,12 @@ def _to_frame(xy, pose) -> tuple[float, float]:
     c, s = math.cos(pose[2]), math.sin(pose[2])
     dx, dy = xy[0] - pose[0], xy[1] - pose[1]
     return (c * dx + s * dy, -s * dx + c * dy)
+
+
+def _from_frame(xy, pose) -> tuple[float, float]:
+    """Point ``xy`` of the frame of ``pose`` (x, y, yaw) in the world frame (inverse of :func:`_to_frame`)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return (pose[0] + c * xy[0] - s * xy[1], pose[1] + s * xy[0] + c * xy[1])
 
 
 def _dim(col) -> tuple[int, int, int]:

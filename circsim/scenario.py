@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
-from merger.search import SEARCH_METHODS
+from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
 from .network import NetworkConfig
@@ -27,6 +27,7 @@ from .slam import DriftConfig, LogOddsConfig, SlamConfig
 from .validate import (
     Invalid,
     bad,
+    boolean,
     choice,
     integer,
     join,
@@ -147,7 +148,15 @@ class CenterErrorSpec:
 
 @dataclass(frozen=True)
 class MergerSettings:
-    """Merger parameters as data; the simulation loop builds ``merger.MergeParams`` from them."""
+    """Merger parameters as data; the simulation loop builds ``merger.MergeParams`` from them.
+
+    window_m : translation window of the search, metres (±window_m on each axis around the given
+        centers, for centers known only roughly); 0 is the thesis's rotation-only search. At most
+        ``roi_m`` / 4.
+    refine : refine θ and t below the search grid (off: θ on the thesis's 0.1° grid, t in whole cells).
+    correct_tol_deg, correct_tol_m : ground truth, not merger parameters: an accepted alignment is correct
+        when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
+    """
 
     roi_m: float = 8.0
     measure: str = "similarity"
@@ -156,7 +165,10 @@ class MergerSettings:
     nu_min: float = 0.5
     min_support: int = 200
     score_min: float = 0.5
+    window_m: float = 0.5
+    refine: bool = True
     correct_tol_deg: float = 2.0
+    correct_tol_m: float = 0.1
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -294,7 +306,7 @@ _MERGER = section(MergerSettings, {
     "roi_m": _POS, "measure": choice("similarity", "birk_carpin", "ncc"),
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
-    "correct_tol_deg": _POS})
+    "window_m": _NONNEG, "refine": boolean, "correct_tol_deg": _POS, "correct_tol_m": _POS})
 _OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
                                "merged_log_period_s": optional(_NONNEG)})
 _TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
@@ -319,6 +331,11 @@ def _build(data, source: str) -> Scenario:
     if slam.size_m <= 4 * robots.radius_m:  # the map is centred on the start pose, on the circle
         raise bad("slam.size_m", f"a number > 4 * robots.radius_m ({4 * robots.radius_m:g}) so that the "
                   "robot's circle fits in its map", slam.size_m)
+    merger = _MERGER(data.get("merger"), "merger")
+    top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
+    if merger.window_m > top + 1e-12:
+        raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
+                  f"{merger.roi_m:g} m)", merger.window_m)
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
     return Scenario(
         name=string(data.get("name", "scenario"), "name"),
@@ -328,7 +345,7 @@ def _build(data, source: str) -> Scenario:
         dt_s=_POS(data.get("dt_s", 0.1), "dt_s"),
         world=_world(data.get("world")), robots=robots, laser=laser, slam=slam,
         center_error=_center_error(data.get("center_error"), robots.names),
-        network=_NETWORK(data.get("network"), "network"), merger=_MERGER(data.get("merger"), "merger"),
+        network=_NETWORK(data.get("network"), "network"), merger=merger,
         output=_OUTPUT(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
 
 

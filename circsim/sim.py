@@ -5,7 +5,9 @@ obstacles), integrates the scan into its SLAM grid; every ``slam.publish_period_
 its map to itself (a new own map) and every ``network.period_s`` it sends its newest map to its
 teammates through the simulated network. Every tick, each robot that received any new map (its own or
 a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds; maps
-arriving in the same tick share one cycle. Each cycle is judged against ground truth.
+arriving in the same tick share one cycle. Each cycle is judged against ground truth: the rotation
+θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
+center error (:func:`truth_translation`, :func:`circsim.metrics.judge_placement`).
 
 Randomness: one ``numpy.random.SeedSequence(seed)`` is split into independent streams per purpose
 and robot (laser noise, SLAM drift, network, center error, publish phases), so the same scenario and
@@ -28,7 +30,7 @@ from merger.team import MergeParams
 
 from .events import MergeCycle, Observer, RobotTick
 from .laser import scan as laser_scan
-from .metrics import MetricsObserver, RobotMetrics, RunResult, judge
+from .metrics import MetricsObserver, RobotMetrics, RunResult, judge_placement
 from .motion import CircleTrajectory, trajectories
 from .network import Network
 from .scenario import Scenario, scenario_to_dict
@@ -57,7 +59,19 @@ class Robot:
 def merge_params(sc: Scenario) -> MergeParams:
     m = sc.merger
     return MergeParams(roi_m=m.roi_m, measure=m.measure, method=m.method, verification=m.verification,
-                       nu_min=m.nu_min, min_support=m.min_support, score_min=m.score_min)
+                       nu_min=m.nu_min, min_support=m.min_support, score_min=m.score_min, window_m=m.window_m,
+                       refine=m.refine)
+
+
+def truth_translation(theta_deg: float, e_i, e_j) -> tuple[float, float]:
+    """True translation t*_ij of map j onto map i: R(θ*_ij)·e_j − e_i.
+
+    With e_k = c_given_k − c_true_k (robot k's center error, in its map frame) and the true placement
+    x_i − c_true_i = R(θ*)(x_j − c_true_j), the alignment x_i = c_given_i + t + R(θ*)(x_j − c_given_j)
+    is exact for t = R(θ*)·e_j − e_i (θ* in degrees)."""
+    a = math.radians(theta_deg)
+    c, s = math.cos(a), math.sin(a)
+    return (c * e_j[0] - s * e_j[1] - e_i[0], s * e_j[0] + c * e_j[1] - e_i[1])
 
 
 def run_params(sc: Scenario) -> dict:
@@ -101,6 +115,12 @@ class Simulation:
         # θ*_ij = yaw_j(0) − yaw_i(0): rotation of map j onto map i
         self.truth_deg = {i: {j: math.degrees(self.start_poses[j].yaw - self.start_poses[i].yaw) % 360.0
                               for j in self.robot_names} for i in self.robot_names}
+        # t*_ij = R(θ*_ij)·e_j − e_i: translation of map j onto map i about the given centers
+        self.center_errors = {n: (r.center_given[0] - r.center_true[0], r.center_given[1] - r.center_true[1])
+                              for n, r in self.robots.items()}
+        self.truth_translation_m = {i: {j: truth_translation(self.truth_deg[i][j], self.center_errors[i],
+                                                             self.center_errors[j])
+                                        for j in self.robot_names} for i in self.robot_names}
         self.result = RunResult(sc.name, self.seed, run_params(sc),
                                 {n: RobotMetrics() for n in self.robot_names})
         self.observers = [MetricsObserver(self.result, self.arc_deg), *observers]
@@ -165,12 +185,19 @@ class Simulation:
         if not r.merger.ready():
             return
         res = r.merger.cycle(now=t)
-        truth = {k: self.truth_deg[r.name][k] for k in r.merger.team if k in r.merger.maps}
-        errors, correct = judge(res.top.theta_deg, truth, self.scenario.merger.correct_tol_deg)
+        held = [k for k in r.merger.team if k in r.merger.maps]
+        truth = {k: self.truth_deg[r.name][k] for k in held}
+        truth_t = {k: self.truth_translation_m[r.name][k] for k in held}
+        m = self.scenario.merger
+        top = res.top
+        found_t = {k: top.translation(k) for k in top.theta_deg}
+        errors, t_errors, correct = judge_placement(top.theta_deg, found_t, truth, truth_t, m.correct_tol_deg,
+                                                    m.correct_tol_m)
         first = res.accepted and correct and not r.first_correct
         r.first_correct |= first
         self._emit("on_merge_cycle", MergeCycle(t, r.name, trigger, res, truth, correct, errors, first,
-                                                res.accepted and not correct))
+                                                res.accepted and not correct, truth_translation_m=truth_t,
+                                                translation_error_m=t_errors))
 
     def run(self) -> RunResult:
         """Run to ``duration_s``. Ctrl-C stops the run at the end of the current tick (so every observer

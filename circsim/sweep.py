@@ -17,8 +17,12 @@ scenario's ``center_error.magnitude_m`` and ``network.latency_s``, every run par
 robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
 ``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
 cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
-``wall_s``, ``duration_s``, ``near_180_proposed``, ``near_180_accepted``, ``top_error_deg.median``
-(see :class:`HypothesisStats`), ``run_key``.
+``wall_s``, ``duration_s``, ``near_180_proposed``, ``near_180_accepted``, ``top_error_deg.median``,
+``top_translation_error_m.median`` (see :class:`HypothesisStats`), ``final_angle_error_deg.<robot>`` /
+``final_translation_error_m.<robot>`` (the largest error over that robot's teammates, of the alignment it
+held at the end; empty if it never accepted one), ``final_angle_error_deg.max`` /
+``final_translation_error_m.max`` (the largest over the robots), ``first_merge_translation_error_m.<robot>``
+(the largest translation error of its first correct merge), ``run_key``.
 """
 
 from __future__ import annotations
@@ -175,12 +179,14 @@ class HypothesisStats(Observer):
     ``near_180_proposed`` / ``near_180_accepted``: order hypotheses with a ~180° error (|err − 180°| ≤ 10°
     for some map) and how many of them were accepted. ``top_error_deg.median``: median over the cycles
     of the largest angle error of the cycle's best hypothesis (how far from ground truth the merger's
-    answer is, accepted or not).
+    answer is, accepted or not); ``top_translation_error_m.median``: the same for its translation error
+    |t − t*| in metres.
     """
 
     def __init__(self, tol_deg: float = 10.0) -> None:
         self.tol_deg, self.proposed, self.accepted = tol_deg, 0, 0
         self.top_errors: list[float] = []
+        self.top_t_errors: list[float] = []
 
     def on_merge_cycle(self, c) -> None:
         from merger.search import angle_diff_deg
@@ -191,10 +197,13 @@ class HypothesisStats(Observer):
                 self.proposed += 1
                 self.accepted += o.accepted
         self.top_errors.append(max(c.angle_error_deg.values(), default=0.0))
+        self.top_t_errors.append(max(c.translation_error_m.values(), default=0.0))
 
     def columns(self) -> dict:
         return {"near_180_proposed": self.proposed, "near_180_accepted": self.accepted,
-                "top_error_deg.median": statistics.median(self.top_errors) if self.top_errors else None}
+                "top_error_deg.median": statistics.median(self.top_errors) if self.top_errors else None,
+                "top_translation_error_m.median":
+                    statistics.median(self.top_t_errors) if self.top_t_errors else None}
 
 
 def _flat_params(d: dict, prefix: str) -> dict:
@@ -226,6 +235,13 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
                                        if merged else None)
     row["first_merge_s.max"] = max(r["first_merge_s"] for r in merged) if len(merged) == len(robots) else None
     row["all_merged"] = rec["all_merged"]
+    for key in ("final_angle_error_deg", "final_translation_error_m"):
+        worst = {name: _worst_teammate(r.get(key), name) for name, r in robots.items()}
+        row.update({f"{key}.{name}": v for name, v in worst.items()})
+        known = [v for v in worst.values() if v is not None]
+        row[f"{key}.max"] = max(known) if known else None
+    for name, r in robots.items():
+        row[f"first_merge_translation_error_m.{name}"] = r.get("first_merge_translation_error_m")
     cycles = sum(r["cycles"] for r in robots.values())
     row.update(false_merges=rec["false_merges"], rejected_correct=rec["rejected_correct"], cycles=cycles,
                rejected_correct_rate=rec["rejected_correct"] / cycles if cycles else None)
@@ -234,6 +250,13 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     row.update(realtime_factor=rec["realtime_factor"], sim_s=rec["sim_s"], wall_s=rec["wall_s"],
                duration_s=sc.duration_s, interrupted=rec["interrupted"], run_key=task.key)
     return row
+
+
+def _worst_teammate(errors: dict | None, robot: str) -> float | None:
+    """The largest of a robot's per-map errors over its teammates (None: it never accepted a merge)."""
+    if not errors:
+        return None
+    return max((v for k, v in errors.items() if k != robot), default=0.0)
 
 
 # --- the row store ---------------------------------------------------------------------------------
@@ -408,7 +431,8 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
         s["runs"] = len(rs)
         s["all_merged_frac"] = sum(bool(r["all_merged"]) for r in rs) / len(rs)
         for m in ("first_merge_s.mean", "first_merge_arc_deg.mean", "rejected_correct_rate",
-                  "merge_cycle_ms.median", "realtime_factor", "top_error_deg.median"):
+                  "merge_cycle_ms.median", "realtime_factor", "top_error_deg.median",
+                  "top_translation_error_m.median", "final_translation_error_m.max"):
             q1, med, q3 = _quantiles([r.get(m) for r in rs])
             s[f"{m}.median"], s[f"{m}.q1"], s[f"{m}.q3"] = med, q1, q3
         s["false_merges.total"] = sum(r["false_merges"] for r in rs)
@@ -459,6 +483,10 @@ def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]
     return paths
 
 
+def _cm(v):
+    return None if v is None else 100.0 * v
+
+
 def format_summary(summary: list[dict], axes: list[Axis]) -> str:
     def f(v, fmt="{:.1f}"):
         return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.format(v)
@@ -466,7 +494,7 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
     keys = [a.key for a in axes]
     head = "  ".join(f"{k:>24}" for k in keys) + (
         f"  {'runs':>4} {'merged':>6} {'first merge s':>17} {'arc deg':>17} {'false':>5} "
-        f"{'rej.corr. rate':>17} {'top err°':>8} {'180° prop/acc':>13} {'cycle ms':>8}")
+        f"{'rej.corr. rate':>17} {'top err°':>8} {'top err cm':>10} {'180° prop/acc':>13} {'cycle ms':>8}")
     lines = [head]
     for s in summary:
         def iqr(m, fmt="{:.1f}", s=s):
@@ -475,6 +503,7 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
             f"  {s['runs']:>4} {s['all_merged_frac']:>6.0%} {iqr('first_merge_s.mean'):>17} "
             f"{iqr('first_merge_arc_deg.mean'):>17} {s['false_merges.total']:>5} "
             f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['top_error_deg.median.median']):>8} "
+            f"{f(_cm(s.get('top_translation_error_m.median.median'))):>10} "
             f"{s['near_180_proposed.total']:>7}/{s['near_180_accepted.total']:<5} "
             f"{f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8}"))
     return "\n".join(lines)

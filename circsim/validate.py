@@ -56,6 +56,13 @@ def integer(ge=None):
     return check
 
 
+def boolean(v, path):
+    """``true`` or ``false`` (YAML booleans; not 0/1 or strings)."""
+    if not isinstance(v, bool):
+        raise bad(path, "true or false", v)
+    return v
+
+
 def string(v, path):
     if not isinstance(v, str):
         raise bad(path, "a string", v)

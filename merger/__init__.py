@@ -26,8 +26,9 @@ __all__ = [
 
 
 def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = 8.0,
-          measure: str = "similarity", method: str = "fast") -> Alignment:
-    """Find the rotation θ of ``moving`` about its center onto ``ref`` about ``center_ref``.
+          measure: str = "similarity", method: str = "fast", window_m: float = 0.5,
+          refine: bool = True) -> Alignment:
+    """Find the rotation θ (and translation t) of ``moving`` about its center onto ``ref``.
 
     Parameters
     ----------
@@ -36,16 +37,24 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
         (``center_moving`` defaults to ``center_ref``).
     roi_m : side of the square region of interest around the center, metres.
     measure : "similarity" (ω̃, eq. 3.11), "birk_carpin" (ω, eq. 2.21) or "ncc".
-    method : "fast" (default: the reference's answer, computed fast — :mod:`merger.fast`), "reference"
-        (the thesis's 380-rotation exhaustive search) or another registered method.
+    method : "fast" (default: the reference's answer, computed fast — :mod:`merger.fast`,
+        :mod:`merger.window`), "reference" (the exhaustive search: the thesis's 380 rotations, times
+        every one-cell translation of the window) or another registered method.
+    window_m : the centers are trusted to ±window_m metres: the search covers every translation t of
+        at most window_m on each axis (one-cell steps) jointly with the rotation. 0 is the thesis's
+        rotation-only search; at most roi_m / 4.
+    refine : refine θ and t below the search grid (plateau middle or parabolic peak fit); False gives
+        the grid answer (θ on the thesis's 0.1° grid, t in whole cells).
 
     Returns
     -------
-    Alignment with ``theta_deg`` in [0, 360) such that x_ref = c_ref + R(θ)(x_moving − c_moving),
-    ``score``, counts, the coarse profile and the runner-up peak.
+    Alignment with ``theta_deg`` in [0, 360) and ``translation_m`` = (tx, ty) such that
+    x_ref = c_ref + t + R(θ)(x_moving − c_moving); ``score``, counts, the coarse profile and the
+    runner-up peak (``theta_grid_deg`` / ``translation_grid_m``: the grid answer before refinement).
     """
     cm = center_ref if center_moving is None else center_moving
-    problem = RotationProblem(ref, moving, tuple(map(float, center_ref)), tuple(map(float, cm)), roi_m, measure)
+    problem = RotationProblem(ref, moving, tuple(map(float, center_ref)), tuple(map(float, cm)), roi_m, measure,
+                              window_m, refine)
     return search(problem, method)
 
 

@@ -1,6 +1,7 @@
 """Command line: ``merger align``, ``merger merge`` and ``merger demo``.
 
-A user's mistake (bad file, bad argument) prints one line ``merger: error: ...`` and exits with 2.
+A user's mistake (bad file, bad argument) prints one line ``merger: error: ...`` and exits with 2, before
+any work and with nothing written.
 """
 
 from __future__ import annotations
@@ -8,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -15,15 +17,42 @@ import numpy as np
 
 from . import align
 from .mapio import MapFileError, ensure_output_dir, load_map, save_map, save_overlay
-from .search import SEARCH_METHODS
+from .search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
-from .transform import canvas, paste, warp_grid
+from .transform import canvas, paste, rotation, warp_grid
 from .verify import verify
+
+MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
+
+XY_OPTIONS = ("--center", "--center-moving", "--real-center")
+_NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
 
 
 class UsageError(Exception):
     pass
+
+
+def join_negative_xy(argv: list[str]) -> list[str]:
+    """``--center -1.2,0.5`` → ``--center=-1.2,0.5`` (also ``--center-moving``, ``--real-center``).
+
+    argparse takes a value starting with '-' for an option unless it is a plain negative number, so the
+    natural spelling of a negative center (ROS map frames mostly have one) would fail with "expected one
+    argument". A token after one of these options that looks like a pair X,Y with a negative X is joined
+    to it; anything after ``--`` is left alone."""
+    out, i = [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a == "--":
+            out.extend(argv[i:])
+            break
+        if a in XY_OPTIONS and i + 1 < len(argv) and _NEGATIVE_XY.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,12 +73,20 @@ def parse_xy(text: str, what: str) -> tuple[float, float]:
 def add_merge_options(p: argparse.ArgumentParser) -> None:
     d = MergeParams()
     p.add_argument("--roi", type=float, default=d.roi_m, metavar="M",
-                   help=f"side of the square region of interest, metres (default {d.roi_m})")
+                   help=f"side of the square region of interest, metres, at most {MAX_ROI_M:g} (default {d.roi_m})")
     p.add_argument("--measure", choices=MEASURES, default=d.measure)
     p.add_argument("--method", choices=sorted(SEARCH_METHODS), default=d.method)
-    p.add_argument("--nu-min", type=float, default=d.nu_min, help=f"verification threshold (default {d.nu_min})")
+    p.add_argument("--window", type=float, default=d.window_m, metavar="M",
+                   help=f"the centers are trusted to ±M metres on each axis: the search covers every translation "
+                        f"within it jointly with the rotation (default {d.window_m}; 0 = rotation only, the "
+                        f"thesis's search; at most a quarter of --roi)")
+    p.add_argument("--no-refine", dest="refine", action="store_false",
+                   help="report the search grid's answer (θ on the 0.1° grid, t in whole cells) without the "
+                        "sub-cell refinement")
+    p.add_argument("--nu-min", type=float, default=d.nu_min,
+                   help=f"verification threshold in [-1, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
-                   help=f"minimum agr̃+dis on whole maps (default {d.min_support})")
+                   help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
 
 
@@ -59,12 +96,13 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("align", help="find the rotation of MOVING onto REF about the common center")
     a.add_argument("ref", type=Path, help="reference map (map_server YAML)")
     a.add_argument("moving", type=Path, help="moving map (map_server YAML)")
-    a.add_argument("--center", required=True, help="common center X,Y in REF's frame (and MOVING's)")
-    a.add_argument("--center-moving", help="common center X,Y in MOVING's frame, when it differs")
+    a.add_argument("--center", required=True, metavar="X,Y",
+                   help="common center X,Y in REF's frame (and MOVING's), e.g. --center -1.2,0.5")
+    a.add_argument("--center-moving", metavar="X,Y", help="common center X,Y in MOVING's frame, when it differs")
     add_merge_options(a)
     m = sub.add_parser("merge", help="merge N ≥ 2 maps in all orders and write the verified result")
     m.add_argument("maps", type=Path, nargs="+", help="maps (map_server YAML); results in the first one's frame")
-    m.add_argument("--center", action="append", required=True,
+    m.add_argument("--center", action="append", required=True, metavar="X,Y",
                    help="common center X,Y: once for all maps, or once per map in order")
     m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
     m.add_argument("--force", action="store_true", help="write the best hypothesis even if verification rejects it")
@@ -81,15 +119,36 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the free point farthest from any obstacle)")
     d.add_argument("--radius", type=float, help="robots' circle radius in metres (default 1.8; with --real: "
                    "0.8 × the center's clearance, at most 1.8)")
+    d.add_argument("--center-error", type=float, default=0.0, metavar="M",
+                   help="give the merger each robot's center off by a random offset of up to ±M metres on each "
+                        "axis (default 0: exact), to show the translation window recovering it")
     add_merge_options(d)
     return p
 
 
 def params_from(args) -> MergeParams:
-    if not args.roi > 0:
-        raise UsageError(f"--roi: expected a positive number of metres, got {args.roi}")
-    return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
-                       min_support=args.min_support)
+    """The merge parameters of the command line, every value checked first (one-line errors naming the
+    option); MergeParams's own ValueError is the last line of defence."""
+    if not (math.isfinite(args.roi) and 0 < args.roi <= MAX_ROI_M):
+        raise UsageError(f"--roi: expected the side of the region of interest, a number of metres in "
+                         f"(0, {MAX_ROI_M:g}], got {args.roi:g}")
+    most = MAX_WINDOW_FRACTION * args.roi
+    if not (math.isfinite(args.window) and 0 <= args.window <= most + 1e-12):
+        raise UsageError(f"--window: expected a number of metres in [0, {most:g}] (0: rotation only; at most a "
+                         f"quarter of the --roi side {args.roi:g} m), got {args.window:g}")
+    if not (math.isfinite(args.nu_min) and -1.0 <= args.nu_min <= 1.0):
+        raise UsageError(f"--nu-min: expected a number in [-1, 1], got {args.nu_min:g}")
+    if args.min_support < 0:
+        raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
+    try:
+        return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
+                           min_support=args.min_support, window_m=args.window, refine=args.refine)
+    except ValueError as e:
+        raise UsageError(f"invalid merge parameters: {e}") from None
+
+
+def _xy(v) -> str:
+    return f"({v[0]:.3f}, {v[1]:.3f})"
 
 
 def cmd_align(args) -> int:
@@ -98,9 +157,11 @@ def cmd_align(args) -> int:
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
     ref, mov = load_map(args.ref), load_map(args.moving)
     al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
-               method=params.method)
-    cv = canvas(ref, [(mov, al.theta_deg, c_mov)], c_ref)
-    v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_ref, cv).states,
+               method=params.method, window_m=params.window_m, refine=params.refine)
+    tx, ty = al.translation_m
+    c_target = (c_ref[0] + tx, c_ref[1] + ty)  # where MOVING's center lands in REF's frame
+    cv = canvas(ref, [(mov, al.theta_deg, c_mov)], c_target)
+    v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_target, cv).states,
                nu_min=params.nu_min, min_support=params.min_support)
     out = {**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
            "center_moving": list(c_mov), "verification": {"nu": v.nu, "agree": v.counts.agree,
@@ -111,12 +172,23 @@ def cmd_align(args) -> int:
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"theta      {al.theta_deg:8.1f} deg   (x_ref = c_ref + R(theta)(x_moving - c_moving))")
-        print(f"score      {al.score:8.3f}       ({al.measure} on the {params.roi_m:g} m ROI; "
+        # REF's center in MOVING's frame implied by (θ, t): x_ref = c_ref + R(θ)(x_moving − c_mov')
+        d = rotation(-al.theta_deg) @ np.array([tx, ty])
+        c_mov_fix = (c_mov[0] - d[0], c_mov[1] - d[1])
+        how = f"window ±{params.window_m:g} m, " if params.window_m > 0 else "rotation only (--window 0), "
+        how += (f"refined from the grid answer {al.theta_grid_deg:.1f} deg, {_xy(al.translation_grid_m)} m"
+                if al.refined else "grid answer: 0.1 deg, whole cells")
+        print(f"theta        {al.theta_deg:9.2f} deg   (x_ref = c_ref + t + R(theta)(x_moving - c_moving))")
+        print(f"translation  {tx:+.3f}, {ty:+.3f} m  ({how})")
+        print(f"             MOVING's center lands at {_xy(c_target)} in REF's frame; given REF center "
+              f"{_xy(c_ref)}: correction ({tx:+.3f}, {ty:+.3f}) m")
+        print(f"             equivalently, with REF's center exact, MOVING's center is {_xy(c_mov_fix)} "
+              f"in its own frame (given {_xy(c_mov)})")
+        print(f"score        {al.score:9.3f}       ({al.measure} on the {params.roi_m:g} m ROI; "
               f"agree {al.counts.agree}, disagree {al.counts.disagree})")
-        print(f"runner-up  {al.runner_up_deg:8.1f} deg   score {al.runner_up_score:.3f}")
+        print(f"runner-up    {al.runner_up_deg:9.1f} deg   score {al.runner_up_score:.3f}")
         verdict = "ACCEPTED" if v.passed else f"REJECTED ({v.reason})"
-        print(f"verify     ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
+        print(f"verify       ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
     return 0 if v.passed else 1
 
 
@@ -133,12 +205,13 @@ def report_merge(res, as_json: bool) -> None:
     if as_json:
         print(json.dumps(res.to_dict()))
         return
-    for o in res.orders:
-        angles = ", ".join(f"{k} {v:.1f}°" for k, v in o.theta_deg.items() if k != res.frame)
+    for o in res.orders:  # two lines per order: verdict, then each map's placement onto the first map
         nus = ", ".join(f"{k} {v:.3f}" for k, v in o.nu.items())
         mark = "accepted" if o.accepted else f"rejected: {o.reason}"
         star = "*" if o is res.chosen else " "
-        print(f"{star} order {'→'.join(o.order):<32} {angles:<30} ν: {nus}  [{mark}]")
+        print(f"{star} order {'→'.join(o.order):<28} ν: {nus}  [{mark}]")
+        print("      " + "; ".join(f"{k} {v:.2f}° t ({o.translation(k)[0]:+.3f}, {o.translation(k)[1]:+.3f}) m"
+                                   for k, v in o.theta_deg.items() if k != res.frame))
     print(f"merge cycle {res.wall_ms:.0f} ms; {'chosen: ' + '→'.join(res.chosen.order) if res.chosen else 'no verified merge'}")
 
 
@@ -149,7 +222,7 @@ def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]
     if res.accepted:
         merged, layers = res.merged, [res.layers[m.name] for m in maps]
     elif force:
-        layers = fused_layers(maps, res.top.theta_deg)
+        layers = fused_layers(maps, res.top.theta_deg, res.top.translation_m)
         merged = type(layers[0])(fuse([g.states for g in layers]), layers[0].resolution, layers[0].origin)
     else:
         return []
@@ -183,6 +256,12 @@ def cmd_demo(args) -> int:
     )
 
     params = params_from(args)
+    if not (math.isfinite(args.arc) and 0 <= args.arc <= 180):
+        raise UsageError(f"--arc: expected a number of degrees in [0, 180], got {args.arc:g}")
+    if args.radius is not None and not (math.isfinite(args.radius) and args.radius > 0):
+        raise UsageError(f"--radius: expected a positive number of metres, got {args.radius:g}")
+    if not (math.isfinite(args.center_error) and args.center_error >= 0):
+        raise UsageError(f"--center-error: expected a number of metres >= 0, got {args.center_error:g}")
     rng = np.random.default_rng(args.seed)
     names, starts = ["Lyon", "Auckland", "Nevers"], [90.0, 210.0, 330.0]
     if args.real:
@@ -206,34 +285,49 @@ def cmd_demo(args) -> int:
         raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
     out = args.output
     ensure_output_dir(out, "-o")
-    maps, poses = [], []
+    poses, views = [], []
     for name, a in zip(names, starts, strict=True):
         pose = robot_pose_on_circle(a, radius, center, yaw_offset_deg=rng.uniform(-40, 40))
         grid, c = view(pose, a)
         save_map(grid, out / f"{name}.yaml")
-        maps.append(MapInput(name, grid, c))
+        views.append((grid, c))
         poses.append(pose)
+    # the centers the merger is given: exact, or off by e_k (own generator: the views stay the seed's views)
+    errs = np.random.default_rng([args.seed, 1]).uniform(-1, 1, (len(names), 2)) * args.center_error
+    maps = [MapInput(n, g, (c[0] + e[0], c[1] + e[1])) for n, (g, c), e in zip(names, views, errs, strict=True)]
     truth = {n: math.degrees(p[2] - poses[0][2]) % 360 for n, p in zip(names, poses, strict=True)}
+    # x_0 = ĉ_0 + t*_k + R(θ*_k)(x_k − ĉ_k) with ĉ = c + e: t*_k = R(θ*_k) e_k − e_0
+    truth_t = {n: tuple(rotation(truth[n]) @ e - errs[0]) for n, e in zip(names, errs, strict=True)}
     res = merge_team(maps, params)
     report_merge(res, args.json)
     written = write_merge(res, maps, out / "merged", force=False)
     if not args.json:
         print(f"views of {source}")
-        print("ground truth: " + ", ".join(f"{n} {truth[n]:.1f}°" for n in names[1:]))
-        if res.chosen:
-            errs = res.chosen.angle_errors_deg(truth)
-            print("angle errors: " + ", ".join(f"{n} {errs[n]:.2f}°" for n in names[1:]))
+        print("ground truth: " + ", ".join(f"{n} {truth[n]:.1f}° {_xy(truth_t[n])} m" for n in names[1:])
+              + (f"  (centers given off by up to ±{args.center_error:g} m)" if args.center_error else
+                 "  (exact centers)"))
+        # errors of the chosen order, or (labelled as such) of the best rejected hypothesis
+        tag = "" if res.chosen else " of the best (rejected) hypothesis"
+        a_err = res.top.angle_errors_deg(truth)
+        print(f"angle errors{tag}: " + ", ".join(f"{n} {a_err[n]:.2f}°" for n in names[1:]))
+        t_err = {n: math.dist(res.top.translation(n), truth_t[n]) for n in names[1:]}
+        print(f"translation errors{tag}: " + ", ".join(f"{n} {t_err[n]:.3f} m" for n in names[1:]))
         print(f"wrote the three local maps and {', '.join(map(str, written)) or 'no merged map'} under {out}")
     return 0 if res.accepted else 1
 
 
 def main(argv=None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args(join_negative_xy(sys.argv[1:] if argv is None else list(argv)))
         return {"align": cmd_align, "merge": cmd_merge, "demo": cmd_demo}[args.cmd](args)
     except (UsageError, MapFileError, ValueError) as e:
         print(f"merger: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `merger merge ... --json | head`: the reader left, not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
+        return 1
     except OSError as e:  # a file the user named cannot be read or written
         print(f"merger: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
         return 2

@@ -197,7 +197,8 @@ def fast_search(problem: RotationProblem) -> Alignment:
         profile[i] = v
     # the free/free count (Birk–Carpin's part of the counts) and the runner-up are computed if asked for
     return Alignment(theta, float(values[k]), lambda: ev.similarity(fine[k]).counts, problem.measure, "fast",
-                     problem.roi_m, profile, lambda: _runner_up(coarse, approx, theta))
+                     problem.roi_m, profile, lambda: _runner_up(coarse, approx, theta),
+                     fine=(np.asarray(fine), np.asarray(values, np.float64)))
 
 
 def _runner_up(coarse: _Coarse, approx: np.ndarray, theta: float) -> tuple[float, float]:

@@ -59,10 +59,12 @@ class PolarLayout:
 
 
 @lru_cache(maxsize=16)
-def polar_layout(n: int, res: float, pool: int) -> PolarLayout:
+def polar_layout(n: int, res: float, pool: int, inscribed: bool = False) -> PolarLayout:
+    """The layout; ``inscribed`` keeps only the rings inside the ROI's inscribed circle (fewer samples,
+    for a cheaper and rougher profile)."""
     half = n * res / 2.0
     pres = res * pool
-    count = int(math.ceil(half * math.sqrt(2) / pres))  # rings out to the ROI's corners
+    count = int(math.ceil(half * (1.0 if inscribed else math.sqrt(2)) / pres))  # rings out to the corners
     rho = (np.arange(count) + 0.5) * pres
     need = 2 * math.pi * rho / pres
     lengths = np.array([next((b for b in _RING_LENGTHS if b >= x), _RING_LENGTHS[-1]) for x in need])
@@ -138,17 +140,21 @@ _LOCK = threading.Lock()
 
 
 def clear_cache() -> None:
-    """Forget the cached polar spectra and sample indices (benchmarks use this to time cold merge cycles)."""
+    """Forget the cached polar spectra and sample indices, and the windowed search's rotated ROIs
+    (benchmarks use this to time cold merge cycles)."""
+    from .window import clear_rotation_cache
+
     with _LOCK:
         _CACHE.clear()
         _INDEX.clear()
+    clear_rotation_cache()
 
 
 def _sample_index(lay: PolarLayout, offset, shape, res: float) -> np.ndarray:
     """Flat index of the pooled cell holding every sample (the extra cell ``size`` when the sample lies
     outside the ROI's square), for a crop whose corner is ``offset`` (metres) from the center. The maps
     of a merge cycle share few lattices (a superposition has its first map's), so it is cached."""
-    key = (lay.n, lay.res, lay.pool, offset[0], offset[1], shape, res)
+    key = (lay.n, lay.res, lay.pool, lay.weight.size, offset[0], offset[1], shape, res)
     with _LOCK:
         if key in _INDEX:
             return _INDEX[key]
@@ -174,7 +180,7 @@ def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
     a small cache keyed by the cropped cells themselves, so a changed grid is never served stale spectra.
     """
     crop, org = _crop(grid, center, lay)
-    key = (lay.n, lay.res, lay.pool, float(center[0] - org[0]), float(center[1] - org[1]),
+    key = (lay.n, lay.res, lay.pool, lay.weight.size, float(center[0] - org[0]), float(center[1] - org[1]),
            grid.resolution, crop.shape)
     with _LOCK:
         for img, spec in _CACHE.get(key, ()):
@@ -184,7 +190,7 @@ def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
     pooled = _max_pool(crop, lay.pool)
     flat = np.zeros(pooled.size + 1, np.uint8)  # and one unknown cell for the samples outside the ROI
     flat[:-1] = pooled.reshape(-1)
-    s = flat.take(_sample_index(lay, key[3:5], pooled.shape, grid.resolution))
+    s = flat.take(_sample_index(lay, key[4:6], pooled.shape, grid.resolution))
     values = np.empty((2, s.size), np.float32)
     np.equal(s, OCCUPIED_S, out=values[0])
     np.equal(s, FREE_S, out=values[1])

@@ -9,6 +9,7 @@ the yardstick for faster methods. Methods are pluggable: a method is a callable
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,6 +19,9 @@ import numpy as np
 from .grid import OccupancyGrid
 from .similarity import MEASURES, Counts, measure_fn
 from .transform import extract_roi, roi_cells, rotated_roi
+from .window import window_cells
+
+MAX_WINDOW_FRACTION = 0.25  # the translation window may cover at most a quarter of the ROI side
 
 COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
@@ -35,12 +39,40 @@ class RotationProblem:
     center_moving: tuple[float, float]
     roi_m: float = 8.0
     measure: str = "similarity"
+    window_m: float = 0.0
+    refine: bool = False
 
     def __post_init__(self) -> None:
         if self.measure not in MEASURES:
             raise ValueError(f"unknown measure {self.measure!r}; expected one of {', '.join(MEASURES)}")
-        if not self.roi_m > 0:
-            raise ValueError(f"roi_m must be > 0, got {self.roi_m}")
+        if not (math.isfinite(self.roi_m) and self.roi_m > 0):
+            raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m}")
+        check_window(self.window_m, self.roi_m)
+        for name, c in (("center_ref", self.center_ref), ("center_moving", self.center_moving)):
+            if len(c) != 2 or not all(math.isfinite(float(v)) for v in c):
+                raise ValueError(f"{name} must be two finite numbers (x, y), got {c}")
+
+    @property
+    def window_cells(self) -> int:
+        """K: the translation search covers (a, b) cells with |a|, |b| ≤ K (0: rotation only)."""
+        return window_cells(self.window_m, self.ref.resolution)
+
+    def offset_m(self, a: int, b: int) -> tuple[float, float]:
+        """The translation (metres, reference frame) of ``a``, ``b`` cells."""
+        r = self.ref.resolution
+        return (a * r, b * r)
+
+    def center_at(self, a: int, b: int) -> tuple[float, float]:
+        """Where the moving map's center lands for a translation of ``a``, ``b`` cells: c_ref + t."""
+        if a == 0 and b == 0:
+            return self.center_ref
+        tx, ty = self.offset_m(a, b)
+        return (self.center_ref[0] + tx, self.center_ref[1] + ty)
+
+    def at(self, a: int, b: int) -> RotationProblem:
+        """The rotation-only problem about the shifted reference center c_ref + t (the thesis's search)."""
+        return RotationProblem(self.ref, self.moving, self.center_at(a, b), self.center_moving, self.roi_m,
+                               self.measure)
 
     @property
     def n(self) -> int:
@@ -84,9 +116,31 @@ class Alignment:
     roi_m: float
     profile: np.ndarray = field(repr=False)
     _runner_up: tuple[float, float] | Callable[[], tuple[float, float]] = field(repr=False)
+    window_m: float = 0.0
+    translation_m: tuple[float, float] = (0.0, 0.0)
+    cells: tuple[int, int] = (0, 0)
+    fine: tuple | None = field(default=None, repr=False)
+    refined: bool = False
+    grid_theta_deg: float | None = None
+    grid_translation_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_lock", threading.Lock())
+        object.__setattr__(self, "translation_m", (float(self.translation_m[0]), float(self.translation_m[1])))
+        if self.grid_theta_deg is None:
+            object.__setattr__(self, "grid_theta_deg", self.theta_deg)
+        if self.grid_translation_m is None:
+            object.__setattr__(self, "grid_translation_m", self.translation_m)
+
+    @property
+    def theta_grid_deg(self) -> float:
+        """θ on the search grid (1° then 0.1°): the thesis's answer, before sub-cell refinement."""
+        return self.grid_theta_deg
+
+    @property
+    def translation_grid_m(self) -> tuple[float, float]:
+        """t on the search grid (whole cells), before sub-cell refinement."""
+        return self.grid_translation_m
 
     def _resolve(self, name: str, convert):
         value = getattr(self, name)
@@ -132,7 +186,10 @@ class Alignment:
 
     def to_dict(self) -> dict:
         return {
-            "theta_deg": self.theta_deg, "score": self.score, "measure": self.measure,
+            "theta_deg": self.theta_deg, "translation_m": list(self.translation_m),
+            "theta_grid_deg": self.theta_grid_deg, "translation_grid_m": list(self.translation_grid_m),
+            "window_m": self.window_m, "refined": self.refined,
+            "score": self.score, "measure": self.measure,
             "method": self.method, "roi_m": self.roi_m,
             "agree": self.counts.agree, "disagree": self.counts.disagree,
             "support": self.counts.support,
@@ -181,33 +238,69 @@ def reference_search(problem: RotationProblem) -> Alignment:
     coarse = np.array([fn(ref_roi, problem.moving_roi(float(a))).value for a in range(360)])
     best_coarse = float(np.argmax(coarse))
     best = None
+    fine_vals = []
     for a in fine_angles(best_coarse):
         s = fn(ref_roi, problem.moving_roi(float(a)))
+        fine_vals.append(s.value)
         if best is None or s.value > best[1].value:
             best = (float(a), s)
     theta = wrap_deg(best[0])
     ru_deg, ru_score = runner_up(coarse, theta)
     return Alignment(theta, best[1].value, best[1].counts, problem.measure, "reference",
-                     problem.roi_m, coarse, (ru_deg, ru_score))
+                     problem.roi_m, coarse, (ru_deg, ru_score),
+                     fine=(fine_angles(best_coarse), np.array(fine_vals, np.float64)))
 
 
 SearchMethod = Callable[[RotationProblem], Alignment]
 SEARCH_METHODS: dict[str, SearchMethod] = {"reference": reference_search}
+WINDOW_METHODS: dict[str, SearchMethod] = {}
 
 
-def register_method(name: str, fn: SearchMethod) -> None:
-    """Register a search method under ``name`` (used by ``align(..., method=name)``)."""
+def register_method(name: str, fn: SearchMethod, window_fn: SearchMethod | None = None) -> None:
+    """Register a search method under ``name`` (used by ``align(..., method=name)``); ``window_fn``
+    searches problems with a translation window (without it, ``name`` is rotation-only)."""
     SEARCH_METHODS[name] = fn
+    if window_fn is not None:
+        WINDOW_METHODS[name] = window_fn
+
+
+def check_window(window_m: float, roi_m: float) -> None:
+    """A window must be a finite number in [0, roi_m / 4] (ValueError naming what was expected)."""
+    try:
+        w = float(window_m)
+    except (TypeError, ValueError):
+        raise ValueError(f"window_m must be a number of metres, got {window_m!r}") from None
+    if not math.isfinite(w) or w < 0:
+        raise ValueError(f"window_m must be a finite number >= 0, got {window_m}")
+    if w > MAX_WINDOW_FRACTION * roi_m + 1e-12:
+        raise ValueError(f"window_m = {w:g} m is more than a quarter of the ROI side ({roi_m:g} m): "
+                         f"expected at most {MAX_WINDOW_FRACTION * roi_m:g} m (or a larger ROI)")
 
 
 def search(problem: RotationProblem, method: str = "reference") -> Alignment:
+    """Run a registered search method on ``problem``.
+
+    A problem with a translation window (``window_m`` of at least one cell) is searched by the method's
+    windowed variant (:data:`WINDOW_METHODS`, see :mod:`merger.window`); a problem with ``refine`` gets
+    the sub-cell refinement (:func:`merger.window.refine_alignment`) of the method's grid answer."""
+    table = WINDOW_METHODS if problem.window_cells > 0 else SEARCH_METHODS
     try:
-        fn = SEARCH_METHODS[method]
+        fn = table[method]
     except KeyError:
-        raise ValueError(f"unknown search method {method!r}; expected one of "
-                         f"{', '.join(sorted(SEARCH_METHODS))}") from None
-    return fn(problem)
+        kind = "windowed search method" if table is WINDOW_METHODS else "search method"
+        raise ValueError(f"unknown {kind} {method!r}; expected one of "
+                         f"{', '.join(sorted(table))}") from None
+    al = fn(problem)
+    if problem.refine and not al.refined:
+        from .window import refine_alignment
+
+        al = refine_alignment(problem, al)
+    return al
 
 
 # The fast method (merger/fast.py) builds on this module and registers itself in SEARCH_METHODS.
 from . import fast as _fast  # noqa: E402,F401  (imported last: it imports the names above)
+from .window import fast_window_search, reference_window_search  # noqa: E402
+
+WINDOW_METHODS["reference"] = reference_window_search
+WINDOW_METHODS["fast"] = fast_window_search

@@ -263,3 +263,80 @@ def random_view_pair(seed: int, scale: float = 1.0):
     gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + rng.uniform(-60, 60), rng.uniform(5, 60), 1.8 * s, k=3),
                           **view)
     return ga, ca, gb, cb, float(rng.uniform(3.2, 8.0)) * s
+
+
+WINDOW_KINDS = ("views", "noise", "identical", "symmetric", "sparse")
+
+
+@dataclass(frozen=True, eq=False)
+class WindowCase:
+    """A generated alignment problem with a rough center and its ground truth.
+
+    ``ref``/``moving`` with the centers as given (``center_moving`` is off by ``error_m`` in the moving
+    frame, the reference's is exact); the truth: x_ref = c_ref + t* + R(θ*)(x_moving − c_moving) with
+    θ* = ``theta_deg`` and t* = ``translation_m`` = R(θ*)·error_m (None for the noise grids, which have
+    no truth). ``roi_m``/``window_m``: the search's parameters."""
+
+    kind: str
+    seed: int
+    ref: OccupancyGrid
+    center_ref: tuple[float, float]
+    moving: OccupancyGrid
+    center_moving: tuple[float, float]
+    roi_m: float
+    window_m: float
+    theta_deg: float | None
+    translation_m: tuple[float, float] | None
+    error_m: tuple[float, float]
+
+
+def window_case(seed: int, kind: str = "views", *, roi_m: tuple[float, float] = (3.2, 4.8),
+                window_m: tuple[float, float] = (0.15, 0.4), error_frac: float = 0.8,
+                size_m: float = 12.0) -> WindowCase:
+    """A generated problem for the rotation × translation search (tests, ``benchmarks/agree_window.py``).
+
+    kinds: ``views`` — two partial views of a generated room (random θ, overlap); ``symmetric`` — a
+    point-symmetric room (two pillars, no boxes) seen over a short arc (the thesis's 180° ambiguity);
+    ``sparse`` — pillars and a few boxes, no walls in range (the chair-legs case); ``identical`` — a
+    view aligned with itself (plateaus; θ* = 0); ``noise`` — random ternary grids (no truth). The
+    moving center is off by a random error of at most ``error_frac`` × window on each axis.
+    """
+    if kind not in WINDOW_KINDS:
+        raise ValueError(f"kind must be one of {WINDOW_KINDS}, got {kind!r}")
+    rng = np.random.default_rng([seed, WINDOW_KINDS.index(kind)])
+    roi = float(rng.uniform(*roi_m))
+    win = float(rng.uniform(*window_m))
+    err = tuple(float(v) for v in rng.uniform(-error_frac * win, error_frac * win, 2))
+    if kind == "noise":
+        n = int(round(roi / 0.05)) + 24
+        p = rng.dirichlet([1, 1, 1]) if rng.random() < 0.5 else np.array([0.5, 0.4, 0.1])
+        a = rng.choice(3, size=(n, n), p=p).astype(np.uint8)
+        b = rng.choice(3, size=(n, n), p=p).astype(np.uint8)
+        org = (-n * 0.025, -n * 0.025)
+        c = (float(rng.uniform(-0.1, 0.1)), float(rng.uniform(-0.1, 0.1)))
+        return WindowCase(kind, seed, OccupancyGrid(a, 0.05, org), c, OccupancyGrid(b, 0.05, org),
+                          (c[0] + err[0], c[1] + err[1]), roi, win, None, None, err)
+    if kind == "symmetric":
+        scene = room_scene(rng, room_center=(0.0, 0.0), n_boxes=0)
+        arcs = (float(rng.uniform(3, 12)), float(rng.uniform(3, 12)))
+    elif kind == "sparse":
+        scene = room_scene(rng, room=(30.0, 30.0), room_center=(0.0, 0.0), n_boxes=int(rng.integers(2, 5)))
+        arcs = (float(rng.uniform(20, 60)), float(rng.uniform(20, 60)))
+    else:
+        scene = room_scene(rng, n_boxes=int(rng.integers(0, 6)))
+        arcs = (float(rng.uniform(5, 60)), float(rng.uniform(5, 60)))
+    theta = 0.0 if kind == "identical" else float(rng.uniform(0, 360))
+    yaw = float(rng.uniform(0, 2 * math.pi))
+    fa = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), yaw)
+    fb = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), yaw + math.radians(theta))
+    a0 = float(rng.uniform(0, 360))
+    view = {"size_m": size_m, "range_m": 5.6, "beams": 720, "noise": 0.002, "rng": rng}
+    ga, ca = partial_view(scene, fa, arc_viewpoints(a0, arcs[0], 1.8, k=3), **view)
+    if kind == "identical":
+        gb, cb = ga, ca
+    else:
+        gb, cb = partial_view(scene, fb, arc_viewpoints(a0 + float(rng.uniform(-40, 40)), arcs[1], 1.8, k=3),
+                              **view)
+    r = math.radians(theta)
+    t = (math.cos(r) * err[0] - math.sin(r) * err[1], math.sin(r) * err[0] + math.cos(r) * err[1])
+    return WindowCase(kind, seed, ga, tuple(ca), gb, (cb[0] + err[0], cb[1] + err[1]), roi, win, theta, t, err)

@@ -13,13 +13,16 @@ orders the highest Σν wins.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .grid import OccupancyGrid
-from .search import Alignment, RotationProblem, angle_diff_deg, search, wrap_deg
+from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
-from .transform import canvas, footprint, overlap, paste, warp_grid
+from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
 from .verify import Verification, pairwise, verify
 
 VERIFICATIONS = ("whole_map", "roi_score")
@@ -35,6 +38,11 @@ class MergeParams:
     verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
         method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
         cross-correlation method, which had only a threshold on the correlation coefficient).
+    window_m : translation window, metres: every pair is searched over rotations and translations
+        within ±window_m on each axis (:mod:`merger.window`), for centers known only roughly; 0 is the
+        thesis's rotation-only search. At most a quarter of ``roi_m``.
+    refine : refine θ and t below the search grid (:func:`merger.window.refine_alignment`); off
+        reproduces the thesis's 0.1° grid answer exactly.
     """
 
     roi_m: float = 8.0
@@ -44,10 +52,22 @@ class MergeParams:
     nu_min: float = 0.5
     min_support: int = 200
     score_min: float = 0.5
+    window_m: float = 0.5
+    refine: bool = True
 
     def __post_init__(self) -> None:
         if self.verification not in VERIFICATIONS:
             raise ValueError(f"verification must be one of {VERIFICATIONS}, got {self.verification!r}")
+        if not (isinstance(self.roi_m, (int, float)) and math.isfinite(self.roi_m) and self.roi_m > 0):
+            raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m!r}")
+        for name in ("nu_min", "score_min"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and -1.0 <= v <= 1.0):
+                raise ValueError(f"{name} must be a finite number in [-1, 1], got {v!r}")
+        if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
+                or self.min_support < 0:
+            raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
+        check_window(self.window_m, self.roi_m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +89,8 @@ class OrderResult:
     """One merge order's hypothesis and its verification.
 
     theta_deg : per map name, the rotation onto map 0's frame (map 0 itself: 0).
+    translation_m : per map name, the translation t onto map 0's frame: x_0 = c_0 + t + R(θ)(x − c)
+        (all (0, 0) for a rotation-only search).
     steps : (moving map name, Alignment) in the order they were searched; angles there are onto the
         superposition's frame (the order's first map).
     nu : per pair "A|B", the whole-map ω̃ (or the ROI score with verification "roi_score").
@@ -80,6 +102,10 @@ class OrderResult:
     checks: dict[str, Verification]
     accepted: bool
     reason: str
+    translation_m: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    def translation(self, name: str) -> tuple[float, float]:
+        return self.translation_m.get(name, (0.0, 0.0))
 
     @property
     def nu(self) -> dict[str, float]:
@@ -95,7 +121,8 @@ class OrderResult:
 
     def to_dict(self) -> dict:
         return {
-            "order": list(self.order), "theta_deg": dict(self.theta_deg), "accepted": self.accepted,
+            "order": list(self.order), "theta_deg": dict(self.theta_deg),
+            "translation_m": {k: list(self.translation(k)) for k in self.theta_deg}, "accepted": self.accepted,
             "reason": self.reason, "nu": self.nu, "nu_sum": self.nu_sum,
             "support": {k: v.support for k, v in self.checks.items()},
             "steps": [{"moving": n, **a.to_dict()} for n, a in self.steps],
@@ -144,7 +171,33 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     if ref.version is None or mov.version is None:
         return None
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
-            params.roi_m, params.measure, params.method)
+            params.roi_m, params.measure, params.method, params.window_m, params.refine)
+
+
+Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
+ORIGIN: tuple[float, float] = (0.0, 0.0)
+
+
+def compose(onto_first: dict[int, Placement], first: int, base: int) -> dict[int, Placement]:
+    """Placements onto the first map's frame → onto map ``base``'s frame.
+
+    With x_f = c_f + t_fk + R(θ_fk)(x_k − c_k) for every k: θ_bk = θ_fk − θ_fb and
+    t_bk = R(−θ_fb)(t_fk − t_fb)."""
+    th_b, t_b = onto_first[base]
+    r = rotation(-th_b)
+    out = {}
+    for k, (th, t) in onto_first.items():
+        d = r @ (np.asarray(t, np.float64) - np.asarray(t_b, np.float64))
+        out[k] = (wrap_deg(th - th_b), (float(d[0]), float(d[1])))
+    out[base] = (0.0, ORIGIN)
+    return out
+
+
+def shifted(center, t) -> tuple[float, float]:
+    """c + t (the point where a placed map's center lands)."""
+    if t[0] == 0.0 and t[1] == 0.0:
+        return (float(center[0]), float(center[1]))
+    return (float(center[0]) + float(t[0]), float(center[1]) + float(t[1]))
 
 
 class Warps:
@@ -168,34 +221,51 @@ class Warps:
             self._known[k] = self.maps[k].grid.known_part()
         return self._known[k]
 
-    def placed(self, k: int, theta: float) -> tuple[OccupancyGrid, float, tuple[float, float]]:
-        """``(grid, θ, center)`` of map ``k`` for :func:`merger.transform.canvas`."""
-        return self.known(k), theta, self.maps[k].center
+    def placed(self, k: int, theta: float, t=ORIGIN) -> tuple[OccupancyGrid, float, tuple[float, float]]:
+        """``(grid, θ, center)`` of map ``k`` for :func:`merger.transform.canvas` — with a translation
+        t, the center is moved back by R(−θ)t so that the canvas's center c_f maps it to c_f + t."""
+        return self.known(k), theta, _source_center(self.maps[k].center, theta, t)
 
-    def get(self, frame: int, k: int, theta: float) -> OccupancyGrid:
-        """Map ``k`` rotated by ``theta`` onto map ``frame``'s lattice (about the maps' centers)."""
-        if k == frame and theta == 0.0:
+    def get(self, frame: int, k: int, theta: float, t=ORIGIN) -> OccupancyGrid:
+        """Map ``k`` placed by (θ, t) onto map ``frame``'s lattice: x_f = c_f + t + R(θ)(x_k − c_k)."""
+        t = (float(t[0]), float(t[1]))
+        if k == frame and theta == 0.0 and t == ORIGIN:
             return self.maps[k].grid
-        key = (frame, k, theta)
+        key = (frame, k, theta, t)
         if key not in self._warps:
             base, m, g = self.maps[frame], self.maps[k], self.known(k)
-            fp = footprint(base.grid, g, theta, m.center, base.center)
-            self._warps[key] = warp_grid(g, theta, m.center, base.center, fp)
+            target = shifted(base.center, t)
+            fp = footprint(base.grid, g, theta, m.center, target)
+            self._warps[key] = warp_grid(g, theta, m.center, target, fp)
         return self._warps[key]
 
-    def check(self, i: int, theta_i: float, j: int, theta_j: float, params: MergeParams) -> Verification:
+    def check(self, i: int, pi: Placement, j: int, pj: Placement, params: MergeParams) -> Verification:
         """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
-        key = (i, theta_i, j, theta_j)
+        key = (i, pi[0], tuple(pi[1]), j, pj[0], tuple(pj[1]))
         if key not in self._checks:
-            a, b = overlap(self.get(0, i, theta_i), self.get(0, j, theta_j))
+            a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
             self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
                                        label=f"{self.maps[i].name}|{self.maps[j].name}")
         return self._checks[key]
 
 
+def _source_center(center, theta: float, t) -> tuple[float, float]:
+    """c − R(−θ)t: with it, c_f + R(θ)(x − (c − R(−θ)t)) = c_f + t + R(θ)(x − c)."""
+    if t[0] == 0.0 and t[1] == 0.0:
+        return (float(center[0]), float(center[1]))
+    d = rotation(-theta) @ np.asarray(t, np.float64)
+    return (float(center[0]) - float(d[0]), float(center[1]) - float(d[1]))
+
+
+def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:
+    """The search problem of ``mov`` onto ``ref`` (a map or a superposition) with ``params``."""
+    return RotationProblem(ref, mov.grid, tuple(ref_center), tuple(mov.center), params.roi_m, params.measure,
+                           params.window_m, params.refine)
+
+
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
                 reuse: dict | None = None, warps: Warps | None = None):
-    """Search the rotations of one order; returns θ onto map 0 per map index and the search steps.
+    """Search the placements of one order; returns (θ, t) onto map 0 per map index and the search steps.
 
     ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
@@ -203,43 +273,40 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
     warps = Warps(maps) if warps is None else warps
     first = maps[order[0]]
     sup = first.grid
-    theta_first = {order[0]: 0.0}
+    onto_first: dict[int, Placement] = {order[0]: (0.0, ORIGIN)}
     steps = []
     for k in order[1:]:
         m = maps[k]
         key = _pair_key(first, m, params) if reuse is not None and k == order[1] else None
         al = reuse.get(key) if key is not None else None
         if al is None:
-            al = search(RotationProblem(sup, m.grid, first.center, m.center, params.roi_m, params.measure),
-                        params.method)
+            al = search(problem_for(sup, first.center, m, params), params.method)
             if key is not None:
                 reuse[key] = al
-        theta_first[k] = al.theta_deg
+        onto_first[k] = (al.theta_deg, al.translation_m)
         steps.append((m.name, al))
         if k != order[-1]:
-            cv = canvas(sup, [warps.placed(k, al.theta_deg)], first.center)
-            sup = OccupancyGrid(superpose(paste(sup, cv).states, paste(warps.get(order[0], k, al.theta_deg),
-                                                                       cv).states),
+            cv = canvas(sup, [warps.placed(k, *onto_first[k])], first.center)
+            sup = OccupancyGrid(superpose(paste(sup, cv).states,
+                                          paste(warps.get(order[0], k, *onto_first[k]), cv).states),
                                 cv.resolution, cv.origin)
-    # x_first = c_first + R(θ_f0)(x_0 − c_0)  ⇒  θ_0k = θ_fk − θ_f0
-    theta0 = {k: wrap_deg(theta_first[k] - theta_first[0]) for k in order}
-    return theta0, tuple(steps)
+    return compose(onto_first, order[0], 0), tuple(steps)
 
 
-def place_on_frame0(maps: list[MapInput], theta0: dict[int, float],
+def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
                     warps: Warps | None = None) -> list[OccupancyGrid]:
     """All maps resampled onto one canvas in map 0's frame: map 0's grid and every other map's known
-    cells (:meth:`Warps.known`)."""
+    cells (:meth:`Warps.known`), each placed by its (θ, t)."""
     warps = Warps(maps) if warps is None else warps
     base = maps[0]
-    cv = canvas(base.grid, [warps.placed(i, theta0[i]) for i in range(1, len(maps))], base.center)
-    return [paste(base.grid, cv)] + [paste(warps.get(0, i, theta0[i]), cv) for i in range(1, len(maps))]
+    cv = canvas(base.grid, [warps.placed(i, *place0[i]) for i in range(1, len(maps))], base.center)
+    return [paste(base.grid, cv)] + [paste(warps.get(0, i, *place0[i]), cv) for i in range(1, len(maps))]
 
 
-def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, theta0, steps,
+def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
                   warps: Warps) -> OrderResult:
     if params.verification == "whole_map":
-        checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, theta0[i], j, theta0[j], params)
+        checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
     else:
         checks = {}
@@ -248,8 +315,9 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
             checks[name] = Verification(al.score, al.counts, ok, "" if ok else
                                         f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
     failed = [c.reason for c in checks.values() if not c.passed]
-    return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: theta0[k] for k in order},
-                       steps, checks, not failed, "; ".join(failed))
+    return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: place0[k][0] for k in order},
+                       steps, checks, not failed, "; ".join(failed),
+                       {maps[k].name: place0[k][1] for k in order})
 
 
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
@@ -269,8 +337,8 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    results = [_order_result(maps, o, params, theta0, steps, warps)
-               for o, (theta0, steps) in zip(orders, aligned, strict=True)]
+    results = [_order_result(maps, o, params, place0, steps, warps)
+               for o, (place0, steps) in zip(orders, aligned, strict=True)]
     accepted = [k for k, r in enumerate(results) if r.accepted]
     chosen, merged, layers = None, None, {}
     if accepted:
@@ -283,7 +351,11 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
                            (time.perf_counter() - t0) * 1e3)
 
 
-def fused_layers(maps: list[MapInput], theta_deg: dict[str, float]) -> list[OccupancyGrid]:
-    """The maps placed on map 0's frame with given rotations (e.g. a kept earlier alignment)."""
-    return place_on_frame0(maps, {i: theta_deg[m.name] for i, m in enumerate(maps)})
+def fused_layers(maps: list[MapInput], theta_deg: dict[str, float],
+                 translation_m: dict[str, tuple[float, float]] | None = None) -> list[OccupancyGrid]:
+    """The maps placed on map 0's frame with given rotations and translations (e.g. a kept earlier
+    alignment; translations default to none)."""
+    tr = translation_m or {}
+    return place_on_frame0(maps, {i: (theta_deg[m.name], tuple(tr.get(m.name, ORIGIN)))
+                                  for i, m in enumerate(maps)})
 

@@ -9,6 +9,7 @@ resampling on cell centres, so no state is ever invented; points outside map j a
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -223,3 +224,68 @@ def paste(ref: OccupancyGrid, target: OccupancyGrid) -> OccupancyGrid:
     out = np.zeros(target.shape, np.uint8)
     out[dr:dr + ref.height, dc:dc + ref.width] = ref.states
     return OccupancyGrid(out, target.resolution, target.origin)
+
+
+def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: int,
+                     resolution: float) -> np.ndarray:
+    """:func:`rotated_roi` computed with OpenCV's nearest-neighbour affine warp; the same states.
+
+    The lookup point of lattice point (i, j) in continuous moving-cell coordinates is separable,
+    u = A[j] + B[i] (x and y alike), so the points OpenCV could round to the neighbour cell (within
+    1/512 cell of a border: its fixed-point arithmetic is good to ~1/1024) are found analytically
+    (:func:`_near_integer`) and recomputed in float64; so are the points near the rotated square's
+    border. A point within 1e-9 of a border in float64 is too close to call outside the reference's own
+    arithmetic: then the whole ROI is computed by :func:`rotated_roi`.
+    """
+    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
+        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+    r = rotation(-theta_deg)
+    k = (np.arange(n) - (n - 1) / 2.0) * resolution
+    rm = moving.resolution
+    half = n * resolution / 2.0
+    # u_x = (c_x + r00 k_j + r01 k_i − o_x) / rm ; u_y = (c_y + r10 k_j + r11 k_i − o_y) / rm
+    a = (center_moving[0] - moving.origin[0] + r[0, 0] * k) / rm
+    b = r[0, 1] * k / rm
+    c = (center_moving[1] - moving.origin[1] + r[1, 0] * k) / rm
+    d = r[1, 1] * k / rm
+    corners = np.abs([a[0] + b[0], a[-1] + b[-1], a[0] + b[-1], a[-1] + b[0],
+                      c[0] + d[0], c[-1] + d[-1], c[0] + d[-1], c[-1] + d[0]])
+    if not corners.max() < _WARP_MAX_COORD:
+        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+    step = resolution / rm
+    m = np.array([[r[0, 0] * step, r[0, 1] * step, a[0] + b[0] - 0.5],
+                  [r[1, 0] * step, r[1, 1] * step, c[0] + d[0] - 0.5]])
+    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, (n, n),
+                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+    ix, jx = _near_integer(a, b, _WARP_EPS)
+    iy, jy = _near_integer(c, d, _WARP_EPS)
+    if ix.size + iy.size:
+        i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
+        ux, uy = a.take(j) + b.take(i), c.take(j) + d.take(i)
+        if ((np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)).any():
+            return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+        col, row = np.floor(ux), np.floor(uy)
+        inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
+        cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
+        out[i, j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
+    # the rotated square's border: d = R(−θ)(k_j, k_i) is outside when |d_x| or |d_y| ≥ half; |d| = |k|,
+    # so only the lattice points at least (nearly) half away from the center can be outside
+    ci, cj, kx, ky = _far_points(n, resolution)
+    adx = np.abs(r[0, 0] * kx + r[0, 1] * ky)
+    ady = np.abs(r[1, 0] * kx + r[1, 1] * ky)
+    if (np.abs(adx - half) < _EXACT_EPS).any() or (np.abs(ady - half) < _EXACT_EPS).any():
+        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+    outside = (adx >= half) | (ady >= half)
+    out[ci[outside], cj[outside]] = UNKNOWN_S
+    return out
+
+
+@lru_cache(maxsize=8)
+def _far_points(n: int, resolution: float):
+    """Lattice points (rows, cols, k_x, k_y) of an (n, n) ROI at least half its side (less a margin)
+    from its center: the only ones a rotation can take out of the square."""
+    k = (np.arange(n) - (n - 1) / 2.0) * resolution
+    half = n * resolution / 2.0
+    i, j = np.nonzero(k[:, None] ** 2 + k[None, :] ** 2 >= (half * (1 - 1e-6)) ** 2)
+    return i, j, k[j], k[i]

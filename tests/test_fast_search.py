@@ -280,7 +280,8 @@ def test_team_merge_same_verdict(seed, arc, roi, measure):
         g, c = partial_view(scene, pose, arc_viewpoints(a, arc, 1.8), noise=0.002, rng=rng)
         maps.append(MapInput(name, g, c))
     verification = "whole_map" if measure == "similarity" else "roi_score"
-    results = [merge_team(maps, MergeParams(roi_m=roi, measure=measure, method=m, verification=verification))
+    results = [merge_team(maps, MergeParams(roi_m=roi, measure=measure, method=m, verification=verification,
+                                                window_m=0.0, refine=False))
                for m in ("fast", "reference")]
     fast, ref = results
     assert fast.accepted == ref.accepted

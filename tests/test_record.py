@@ -19,10 +19,11 @@ from circsim import record
 from circsim.cli import main
 from circsim.events import MergeCycle, RobotTick
 from circsim.laser import scan as laser_scan
-from circsim.metrics import RobotMetrics, RunResult, judge
+from circsim.metrics import RobotMetrics, RunResult, judge_placement
 from circsim.motion import trajectories
 from circsim.record import RerunRecorder, read_recording, rerun_executable, view
 from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.sim import truth_translation
 from circsim.world import World
 from merger.overlay import overlay_rgb
 from merger.team import MapInput, MergeParams, merge_team
@@ -119,13 +120,23 @@ def fabricated(tmp_path_factory):
         log["ticks"].append((t, k, ticks))
         return t
 
+    # the maps' centers are given with errors (metres, in each map's frame): the translation window finds
+    # t*_ij = R(θ*_ij)·e_j − e_i
+    center_errors = {"Lyon": (0.15, 0.0), "Auckland": (0.0, -0.1), "Nevers": (-0.1, 0.1)}
+
     def merge(t, robot, params=None):
         order = [robot] + [n for n in NAMES if n != robot]
-        res = merge_team([MapInput(n, maps[n][0], maps[n][1]) for n in order], params or MergeParams())
+        e = center_errors
+        inputs = [MapInput(n, maps[n][0], (maps[n][1][0] + e[n][0], maps[n][1][1] + e[n][1])) for n in order]
+        res = merge_team(inputs, params or MergeParams(window_m=0.5))
         truth = {j: (truth_onto_lyon[j] - truth_onto_lyon[robot]) % 360 for j in order}
-        errors, correct = judge(res.top.theta_deg, truth, 2.0)
+        t_truth = {j: truth_translation(truth[j], e[robot], e[j]) for j in order}
+        top = res.top
+        errors, t_errors, correct = judge_placement(top.theta_deg, {k: top.translation(k) for k in order},
+                                                    truth, t_truth, 2.0, 0.1)
         first = res.accepted and correct and not any(c.robot == robot and c.first_correct for c in log["cycles"])
-        c = MergeCycle(t, robot, "test", res, truth, correct, errors, first, res.accepted and not correct)
+        c = MergeCycle(t, robot, "test", res, truth, correct, errors, first, res.accepted and not correct,
+                       truth_translation_m=t_truth, translation_error_m=t_errors)
         rec.on_merge_cycle(c)
         log["cycles"].append(c)
 
@@ -141,7 +152,7 @@ def fabricated(tmp_path_factory):
                     if m != n:
                         rec.on_map_received(t, n, m, 0.5)
         if k == 7:
-            merge(t, "Lyon", MergeParams(nu_min=0.99))  # rejected: ν below an impossible threshold
+            merge(t, "Lyon", MergeParams(nu_min=0.99, window_m=0.5))  # rejected: ν_min impossible
             for n in NAMES:
                 merge(t, n)  # accepted, first correct: logged at once
         if k in (8, 10):
@@ -162,8 +173,9 @@ def test_recording_has_the_entity_tree(fabricated):
         w = f"/world/robots/{n}"
         expected |= {f"{w}/circle", f"{w}/pose", f"{w}/scan", f"{w}/rays", f"{w}/map", f"{w}/map/local",
                      f"{w}/map/slam_pose", f"{w}/map/center_given", f"{w}/map/merged", f"/merge/{n}/overlay",
-                     f"/events/{n}"}
-        expected |= {f"/plots/{n}/{p}" for p in ("omega", "nu", "support", "angle_error_deg", "cycle_ms")}
+                     f"/events/{n}", f"{w}/centers/given", f"{w}/centers/placed", f"{w}/centers/placed_error"}
+        expected |= {f"/plots/{n}/{p}" for p in ("omega", "nu", "support", "angle_error_deg",
+                                                 "translation_error_m", "cycle_ms")}
     assert expected <= paths, expected - paths
     assert verify(fabricated.path).returncode == 0
 
@@ -219,6 +231,10 @@ def test_local_maps_at_each_publication_in_ros_order(fabricated):
         assert frame["static"] and frame["Transform3D:translation"][0][:2] == pytest.approx(s[:2])
         label = rec[f"/world/robots/{n}/map/center_given"][0]["Points3D:labels"][0]
         assert "error 5.0 cm" in label, label
+        given_w = rec[f"/world/robots/{n}/centers/given"][0]  # the same point, in W
+        assert given_w["static"] and given_w["Points3D:labels"][0] == label
+        np.testing.assert_allclose(given_w["Points3D:positions"][0][:2],
+                                   record._from_frame(fabricated.sim.centers_given[n], s), atol=1e-5)
     assert sum("published map" in x for n in NAMES for x in texts(rec, f"/events/{n}")) == 6
     assert sum("received" in x and "delay" in x for n in NAMES for x in texts(rec, f"/events/{n}")) == 6
 
@@ -238,6 +254,23 @@ def test_merge_events_plots_and_throttled_merged_maps(fabricated):
             if m != n:
                 assert [v for _, v in plotted[f"{m} angle error (°)"]] == pytest.approx(
                     [c.angle_error_deg[m] for c in mine])
+        t_plotted = series(rec, f"/plots/{n}/translation_error_m")
+        for m in NAMES:
+            if m != n:
+                assert [v for _, v in t_plotted[f"{m} translation error (m)"]] == pytest.approx(
+                    [c.translation_error_m[m] for c in mine])
+        # where the accepted alignments put the teammates' given centers: c_i + t_ij, drawn in W
+        placed = [r for r in rec[f"/world/robots/{n}/centers/placed"] if not r["static"]]
+        assert [r["sim_time"] for r in placed] == pytest.approx([c.t for c in mine])
+        s_i, g_i, top = fabricated.sim.start_poses[n], fabricated.sim.centers_given[n], mine[-1].result.top
+        mates = [m for m in top.theta_deg if m != n]
+        want = [record._from_frame((g_i[0] + top.translation(m)[0], g_i[1] + top.translation(m)[1]), s_i)
+                for m in mates]
+        np.testing.assert_allclose(np.array(placed[-1]["Points3D:positions"])[:, :2], want, atol=1e-5)
+        strips = rec[f"/world/robots/{n}/centers/placed_error"][-1]["LineStrips3D:strips"]
+        sim = fabricated.sim
+        ends = [record._from_frame(sim.centers_given[m], sim.start_poses[m]) for m in mates]
+        np.testing.assert_allclose([np.array(st)[1, :2] for st in strips], ends, atol=1e-5)
         ms = series(rec, f"/plots/{n}/cycle_ms")[f"{n} merge cycle (ms)"]
         assert [v for _, v in ms] == pytest.approx([c.result.wall_ms for c in cycles if c.robot == n])
     rejected = [x for x in texts(rec, "/events/Lyon") if x.startswith("rejected merge")]
@@ -294,8 +327,9 @@ def test_every_accepted_merge_logged_with_merged_log_period_0(tmp_path):
 def short_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("run")
     rrd, js = d / "run.rrd", d / "run.json"
-    rc = main(["run", "scene1", "--set", "duration_s=12", "--set", "merger.method=fast", "--rrd", str(rrd),
-               "--json", str(js), "--quiet"])
+    rc = main(["run", "scene1", "--set", "duration_s=12", "--set", "merger.method=fast", "--set",
+               "center_error.magnitude_m=0.1", "--set", "merger.window_m=0.3", "--rrd", str(rrd), "--json",
+               str(js), "--quiet"])
     assert rc == 0
     return SimpleNamespace(path=rrd, rec=read_recording(rrd), metrics=json.loads(js.read_text()))
 
@@ -321,6 +355,19 @@ def test_run_recording_matches_the_metrics(short_run):
                 values = plotted[f"{mate} angle error (°)"]
                 assert len(values) == m["accepted"]
                 assert values[-1][1] == pytest.approx(err)
+        t_plotted = series(rec, f"/plots/{n}/translation_error_m")
+        for mate, err in m["final_translation_error_m"].items():
+            if mate != n:
+                assert len(t_plotted[f"{mate} translation error (m)"]) == m["accepted"]
+                assert t_plotted[f"{mate} translation error (m)"][-1][1] == pytest.approx(err)
+        # the segment from where n's held alignment puts a teammate's given center to where it truly is
+        # is as long as that alignment's translation error |t − t*|
+        last = rec[f"/world/robots/{n}/centers/placed_error"][-1]
+        labels = rec[f"/world/robots/{n}/centers/placed"][-1]["Points3D:labels"]
+        for st, label in zip(last["LineStrips3D:strips"], labels, strict=True):
+            mate = label.split("'s center")[0]
+            a, b = np.array(st)[:, :2]
+            assert np.hypot(*(a - b)) == pytest.approx(m["final_translation_error_m"][mate], abs=1e-5)
         assert len(series(rec, f"/plots/{n}/cycle_ms")[f"{n} merge cycle (ms)"]) == m["cycles"]
         assert 0 < len(rec[f"/world/robots/{n}/map/merged"]) <= m["accepted"]
         assert len(rec[f"/merge/{n}/overlay"]) == len(rec[f"/world/robots/{n}/map/merged"])

@@ -13,7 +13,8 @@ from circsim.sim import Simulation
 
 METRIC_KEYS = {"scenario", "seed", "params", "robots", "false_merges", "rejected_correct", "merge_cycle_ms",
                "realtime_factor"}
-ROBOT_KEYS = {"first_merge_s", "first_merge_arc_deg"}
+ROBOT_KEYS = {"first_merge_s", "first_merge_arc_deg", "final_angle_error_deg", "final_translation_error_m",
+              "first_merge_translation_error_m"}
 
 
 def scene(name, *sets):

@@ -74,7 +74,9 @@ def test_pool_and_dask_give_the_same_rows(tmp_path):
     for k in ("scenario", "seed", "center_error.magnitude_m", "network.latency_s", "first_merge_s.Lyon",
               "first_merge_arc_deg.Nevers", "first_merge_s.mean", "false_merges", "rejected_correct",
               "rejected_correct_rate", "merge_cycle_ms.median", "merge_cycle_ms.p95", "realtime_factor",
-              "all_merged", "run_key"):
+              "all_merged", "run_key", "final_translation_error_m.Lyon", "final_translation_error_m.max",
+              "final_angle_error_deg.max", "first_merge_translation_error_m.Nevers",
+              "top_translation_error_m.median", "param.merger.window_m", "param.merger.correct_tol_m"):
         assert k in row, k
 
 

@@ -1,0 +1,623 @@
+"""Rotation *and* translation search, for a common center known only roughly (beyond the thesis).
+
+The thesis (3.3.1) searches only a rotation because the center is shared; it names the imprecise center
+as its main failure ("an exact alignment by searching only a rotation is not possible with an
+imprecisely given center"). With a window ``W`` the alignment of map j onto map i becomes
+
+    x_i = c_i + t + R(θ)(x_j − c_j),   t = (a, b) · res,  |a|, |b| ≤ K = ⌊W / res⌋,
+
+i.e. the moving map's center lands at ``c_i + t``. The region of interest is centred there (on the
+center both maps then share), so a translation is the thesis's rotation problem about the shifted
+reference center ``c_i + t`` (:meth:`merger.search.RotationProblem.at`): for W = 0 everything below is
+the thesis's search, bit for bit.
+
+**The grid answer** (:func:`reference_window_search`, exhaustive, the yardstick): every translation of
+the window in one-cell steps × every coarse angle 0°, 1°, …, 359°; the best (θc, tc) — ties to the
+translation first in :func:`translation_offsets` order (nearest the given center first), then the
+smallest angle; then the thesis's refinement, 0.1° over θc ± 1° at tc (first maximum). That is
+(360 + 20)·… evaluations: (2K+1)²·360 + 21.
+
+**The fast method** (:func:`fast_window_search`) finds that answer with few exact evaluations:
+
+1. *All (θ, t), approximately*: the polar FFT profile of :mod:`merger.polar` about every translation of
+   a coarse lattice (max-pooled cells, 10–20 cm), all 360 angles per translation in one FFT product;
+2. *A few (θ, t), exactly*: the best approximate peaks (non-maximum suppressed, plus the best one near
+   the half turn, the thesis's typical false alignment) are hill-climbed on the exact coarse grid
+   (1° × one cell) with :class:`WindowEvaluator`, which computes the exact counts of one angle for many
+   translations at once (the rotated moving ROI does not depend on t; the reference ROI is a shifted
+   block of the reference grid);
+3. *The refinement exactly*, as the reference: 21 angles at tc by :class:`merger.sparse.SparseEvaluator`.
+
+Step 2 starts only from the approximate stage's peaks: it returns the reference's answer when the
+approximation ranks the true best peak among its best few, which :func:`benchmarks/agree_window.py`
+and the property tests check against the reference (it is not exact by construction).
+
+**Sub-cell refinement** (:func:`refine_alignment`, on by default): the grid answer is refined below the
+grid — θ starts at the middle of a plateau of equal best fine scores, then (θ, t) climb a smooth score
+(the reference's occupied cells blurred into a likelihood field, read bilinearly at the moving map's
+occupied cells), within ±1° and ±1 cell of the grid answer. A parabola through the grid's own scores
+was tried first and rejected: nearest-neighbour scores carry little sub-cell information, and its
+offsets lowered the whole-map ν of correct merges below ν_min.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import threading
+from collections import OrderedDict
+
+import numpy as np
+import scipy.fft as sfft
+
+from .grid import FREE_S, OCCUPIED_S
+from .polar import PROFILE_LEN, _max_pool, _spectra, polar_layout, polar_spectra
+from .similarity import Counts, index_from_counts
+from .sparse import SparseEvaluator, lattice_coords, ncc_from_sums
+from .transform import rotated_roi_fast
+
+POLAR_POOL_MIN = 2  # the approximate stage pools at least 2× (10 cm cells at 5 cm)
+POLAR_TARGET_CELLS = 40  # ... and keeps about this many pooled cells across the ROI
+MAX_LATTICE_STEPS = 3  # ... and coarser for wide windows: at most ±3 pooled cells of translation
+WINDOW_CANDIDATES = 5  # approximate peaks climbed exactly
+NMS_DEG = 4  # peaks closer than this (and within one pooled cell) are one peak
+OPPOSITE_DEG = 20
+
+
+def window_cells(window_m: float, resolution: float) -> int:
+    """K: translations of at most K cells each way fit in ±window_m."""
+    return int(math.floor(window_m / resolution + 1e-9)) if window_m > 0 else 0
+
+
+def translation_offsets(k: int) -> list[tuple[int, int]]:
+    """All (a, b) with |a|, |b| ≤ k, nearest first: by a² + b², then b, then a (the tie order)."""
+    ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
+    return sorted(ts, key=lambda t: (t[0] * t[0] + t[1] * t[1], t[1], t[0]))
+
+
+# --- the exhaustive reference -----------------------------------------------------------------------
+def reference_window_search(problem):
+    """Exhaustive rotation × translation search (see the module documentation); slow, the yardstick."""
+    from .search import Alignment, fine_angles, measure_fn, runner_up, wrap_deg
+
+    fn = measure_fn(problem.measure)
+    ts = translation_offsets(problem.window_cells)
+    refs = [problem.at(a, b).ref_roi() for a, b in ts]
+    table = np.empty((len(ts), 360))
+    for th in range(360):
+        mov = problem.moving_roi(float(th))
+        for i, r in enumerate(refs):
+            table[i, th] = fn(r, mov).value
+    i_best, th_best = np.unravel_index(int(np.argmax(table)), table.shape)  # first max: t order, then θ
+    tc = ts[int(i_best)]
+    sub = problem.at(*tc)
+    best = None
+    angles = fine_angles(float(th_best))
+    fine_vals = []
+    for a in angles:
+        s = fn(refs[int(i_best)], sub.moving_roi(float(a)))
+        fine_vals.append(s.value)
+        if best is None or s.value > best[1].value:
+            best = (float(a), s)
+    theta = wrap_deg(best[0])
+    profile = table.max(axis=0)
+    return Alignment(theta, best[1].value, best[1].counts, problem.measure, "reference", problem.roi_m,
+                     profile, runner_up(profile, theta), window_m=problem.window_m,
+                     translation_m=problem.offset_m(*tc), cells=tc,
+                     fine=(np.asarray(angles, np.float64), np.asarray(fine_vals, np.float64)))
+
+
+# --- exact evaluation of one angle at many translations ---------------------------------------------
+class WindowEvaluator:
+    """Exact values of a windowed problem at (θ, t) — equal as floats to the reference's.
+
+    For one angle the moving ROI rotated by θ (:meth:`RotationProblem.moving_roi`) is the same for every
+    translation; it is computed once (:func:`merger.transform.rotated_roi_fast`: OpenCV's warp, with
+    the lookups near a cell border recomputed, the same states as the reference's). The reference ROI at t is the reference grid
+    sampled on the lattice about ``c_ref + t`` with the reference's own arithmetic (per-axis cell indices,
+    :func:`merger.sparse.fast_extract_roi`), so the counts are gathers: the moving-occupied lattice points
+    against the reference (agr̃, half of dis) and the reference-occupied cells against the moving ROI's free
+    cells (the other half of dis).
+    """
+
+    def __init__(self, problem) -> None:
+        self.problem = problem
+        n = self.n = problem.n
+        self.res = problem.ref.resolution
+        self.k = lattice_coords(n, self.res)
+        ref = problem.ref
+        self._pad = np.zeros((ref.height + 2, ref.width + 2), np.uint8)
+        self._pad[1:-1, 1:-1] = ref.states
+        self._padO = (self._pad == OCCUPIED_S).reshape(-1)
+        self._padF = (self._pad == FREE_S).reshape(-1)
+        self.reach = problem.window_cells + 1  # translations evaluated: |a|, |b| ≤ reach (the window and
+        self._tab = None                       # one cell beyond, for the refinement at its edge)
+        self._q = None
+        self._margin = 0
+        self._mov: dict[float, np.ndarray] = {}
+        self._dig = None
+        self.values: dict[float, np.ndarray] = {}  # per angle: values by (b, a) + reach (NaN: not yet)
+
+    def _digest(self) -> bytes:
+        if self._dig is None:
+            self._dig = grid_digest(self.problem.moving)
+        return self._dig
+
+    def _axes_table(self):
+        """Per translation index −K..K: the padded reference columns (rows) of the ROI lattice about
+        c_ref + t, with the reference's own arithmetic (:meth:`RotationProblem.center_at`, extract_roi),
+        and whether they form plain blocks."""
+        if self._tab is None:
+            ref, kk = self.problem.ref, self.reach
+            steps = np.arange(-kk, kk + 1) * ref.resolution  # a · res, as offset_m
+            cx, cy = self.problem.center_ref
+            out = []
+            for c, o, size in ((cx, ref.origin[0], ref.width), (cy, ref.origin[1], ref.height)):
+                cs = c + steps
+                cs[kk] = c  # t = 0 is the given center itself
+                idx = np.floor((cs[:, None] + self.k[None, :] - o) / ref.resolution).astype(np.int64)
+                block = (np.diff(idx, axis=1) == 1).all(axis=1)
+                first = idx[:, 0] + 1
+                inside = (idx[:, 0] >= 0) & (idx[:, -1] < size)
+                out.append((np.clip(idx, -1, size) + 1, block, first, inside))
+            self._tab = out
+        return self._tab
+
+    def _axis(self, a: int, b: int):
+        """Padded reference row and column indices of the ROI lattice about c_ref + t (as extract_roi),
+        and the first ones when they are plain blocks (None otherwise)."""
+        (cols, cb, cf, _), (rows, rb, rf, _) = self._axes_table()
+        kk = self.reach
+        i, j = a + kk, b + kk
+        if not (0 <= i < cols.shape[0] and 0 <= j < rows.shape[0]):
+            raise ValueError(f"translation ({a}, {b}) cells is outside the window ±{kk}")
+        first = (int(rf[j]), int(cf[i])) if cb[i] and rb[j] else None
+        return rows[j], cols[i], first
+
+    def _occupied_cells(self):
+        """Occupied cells of the padded reference that any window's ROI can hold: (rows, cols)."""
+        if self._q is None:
+            k, n = self.reach, self.n
+            corners = [self._axis(a, b) for a in (-k, k) for b in (-k, k)]
+            r0 = min(int(c[0][0]) for c in corners)
+            r1 = max(int(c[0][-1]) for c in corners) + 1
+            c0 = min(int(c[1][0]) for c in corners)
+            c1 = max(int(c[1][-1]) for c in corners) + 1
+            sub = self._padO.reshape(self._pad.shape)[r0:r1, c0:c1]
+            qr, qc = np.nonzero(sub)
+            m = self._margin = max(r1 - r0, c1 - c0) - n + 2
+            self._q = (qr + r0) * (n + 2 * m) + (qc + c0)  # flat, in the padded moving-free image's width
+            inside = np.zeros((n + 2 * m, n + 2 * m), bool)
+            inside[m:m + n, m:m + n] = True
+            self._inside = inside.reshape(-1)
+        return self._q
+
+    def moving(self, thetas) -> None:
+        """Compute (and keep) the rotated moving ROIs of ``thetas``: per angle the moving-occupied
+        lattice points and the moving-free indicator, padded for the translation gathers."""
+        todo = [float(t) for t in dict.fromkeys(thetas) if float(t) not in self._mov]
+        if not todo:
+            return
+        self._occupied_cells()
+        n, m = self.n, self._margin
+        w = n + 2 * m
+        wp = self._pad.shape[1]
+        p = self.problem
+        for t in todo:
+            mov = _rotated(p.moving, self._digest(), t, p.center_moving, n, self.res)
+            pi, pj = np.divmod(np.flatnonzero(mov == OCCUPIED_S), n)
+            mfp = np.zeros((w, w), bool)
+            mfp[m:m + n, m:m + n] = (mov == FREE_S).reshape(n, n)
+            # moving-occupied lattice points (i, j), and as flat offsets i·wp + j from the ROI's first cell
+            self._mov[t] = ((pi, pj, pi * wp + pj), mfp.reshape(-1), mov)
+
+    def evaluate(self, theta: float, ts) -> np.ndarray:
+        """Values at angle θ and translations ``ts`` [(a, b), ...] (cells)."""
+        ts = np.asarray(ts, np.intp).reshape(-1, 2)
+        return self.evaluate_ab(theta, ts[:, 0], ts[:, 1])
+
+    def evaluate_ab(self, theta: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Values at angle θ and translations (a[i], b[i]) cells (arrays)."""
+        theta = float(theta)
+        tab = self.values.get(theta)
+        if tab is None:
+            tab = self.values[theta] = np.full((2 * self.reach + 1, 2 * self.reach + 1), np.nan)
+        ia, ib = a + self.reach, b + self.reach
+        out = tab[ib, ia]
+        miss = np.isnan(out)
+        if miss.any():
+            self.moving([theta])
+            todo = np.stack([a[miss], b[miss]], axis=1)  # distinct: callers pass distinct translations
+            tab[todo[:, 1] + self.reach, todo[:, 0] + self.reach] = self._values(theta, todo)
+            out = tab[ib, ia]
+        return out
+
+    def counts(self, theta: float, t) -> Counts:
+        self.moving([theta])
+        c = self._counts(float(theta), [tuple(t)])
+        return Counts(int(c[0][0]), int(c[1][0] + c[2][0]), int(c[3][0]))
+
+    def _counts(self, theta: float, ts, free_agree: bool = True):
+        """Per translation: agr̃, dis where the moving map is occupied, dis where the reference is,
+        free/free (if asked), the reference ROI's occupied count; and the moving ROI's occupied count."""
+        n, kk = self.n, self.reach
+        (cols_t, cb, cf, cin), (rows_t, rb, rf, rin) = self._axes_table()
+        ts = np.asarray(ts, np.intp).reshape(-1, 2)
+        ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
+        if ia.min() < 0 or ib.min() < 0 or ia.max() >= cols_t.shape[0] or ib.max() >= rows_t.shape[0]:
+            raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
+        (pi, pj, pflat), mfp, mov = self._mov[theta]
+        wp = self._pad.shape[1]
+        block = cb[ia] & rb[ib]
+        nt = ia.size
+        if (block & cin[ia] & rin[ib]).all():  # plain blocks inside the grid: shifted flat indices
+            idx = (rf[ib] * wp + cf[ia])[:, None] + pflat[None, :]
+        else:
+            idx = rows_t[ib][:, pi] * wp + cols_t[ia][:, pj]
+        st = self._pad.reshape(-1)[idx]  # (T, |P|): reference states under the moving-occupied points
+        agr = np.count_nonzero(st == OCCUPIED_S, axis=1)
+        d_mo = np.count_nonzero(st == FREE_S, axis=1)
+        d_ro = np.zeros(nt, np.int64)
+        sx = np.zeros(nt, np.int64)
+        ff = np.zeros(nt, np.int64)
+        qflat = self._q
+        if block.any() and qflat.size:  # each window's reference-occupied cells against the moving free cells
+            m = self._margin
+            w = n + 2 * m
+            flat = qflat[None, :] - ((rf[ib[block]] - m) * w + (cf[ia[block]] - m))[:, None]
+            d_ro[block] = np.count_nonzero(mfp[flat], axis=1)
+            if self.problem.measure == "ncc":
+                sx[block] = np.count_nonzero(self._inside[flat], axis=1)
+        if not block.all() or free_agree:
+            padO2 = (self._pad == OCCUPIED_S)
+            padF2 = (self._pad == FREE_S)
+            mf = (mov == FREE_S).reshape(n, n)
+            for r in range(nt):
+                rw, cl = rows_t[ib[r]], cols_t[ia[r]]
+                if not block[r]:  # not a plain block (float ties in the lattice): count densely
+                    ro = padO2[np.ix_(rw, cl)]
+                    sx[r] = np.count_nonzero(ro)
+                    d_ro[r] = np.count_nonzero(ro & mf)
+                if free_agree:
+                    ff[r] = np.count_nonzero(padF2[np.ix_(rw, cl)] & mf)
+        return agr, d_mo, d_ro, ff, sx, pflat.size
+
+    def _values(self, theta: float, ts) -> list[float]:
+        m = self.problem.measure
+        agr, d_mo, d_ro, ff, sx, sy = self._counts(theta, ts, free_agree=m == "birk_carpin")
+        if m == "similarity":  # index_from_counts, inlined (Python ints: the same floats)
+            return np.array([a / (a + d) if a + d else 0.0
+                             for a, d in zip(agr.tolist(), (d_mo + d_ro).tolist(), strict=True)], np.float64)
+        out = []
+        for r in range(len(ts)):
+            a, d = int(agr[r]), int(d_mo[r] + d_ro[r])
+            if m == "ncc":
+                out.append(ncc_from_sums(self.n * self.n, float(sx[r]), float(sy), float(a)))
+            else:
+                out.append(index_from_counts(Counts(a, d, int(ff[r])), m))
+        return np.array(out, np.float64)
+
+
+# --- rotated moving ROIs, shared between searches --------------------------------------------------
+_ROT: OrderedDict = OrderedDict()
+_ROT_BYTES = [0]
+ROT_CACHE_BYTES = 48 * 2**20  # the cache's bound
+_ROT_LOCK = threading.Lock()
+
+
+def grid_digest(grid) -> bytes:
+    """A content key of a grid: its states, shape, resolution and origin."""
+    h = hashlib.blake2b(np.ascontiguousarray(grid.states).data, digest_size=16)
+    h.update(repr((grid.shape, grid.resolution, grid.origin)).encode())
+    return h.digest()
+
+
+def clear_rotation_cache() -> None:
+    with _ROT_LOCK:
+        _ROT.clear()
+        _ROT_BYTES[0] = 0
+
+
+def _rotated(moving, digest: bytes, theta: float, center, n: int, res: float) -> np.ndarray:
+    """:func:`merger.transform.rotated_roi_fast` (flat), from a bounded cache keyed by content: a map is
+    the moving map of several searches of a merge cycle, and of the next cycles while it is unchanged."""
+    key = (digest, float(center[0]), float(center[1]), n, res, theta)
+    with _ROT_LOCK:
+        hit = _ROT.get(key)
+        if hit is not None:
+            _ROT.move_to_end(key)
+            return hit
+    out = rotated_roi_fast(moving, theta, center, n, res).reshape(-1)
+    out.setflags(write=False)
+    with _ROT_LOCK:
+        if key not in _ROT:
+            _ROT[key] = out
+            _ROT_BYTES[0] += out.nbytes
+            while _ROT_BYTES[0] > ROT_CACHE_BYTES and _ROT:
+                _ROT_BYTES[0] -= _ROT.popitem(last=False)[1].nbytes
+    return out
+
+
+# --- the approximate stage ----------------------------------------------------------------------------
+def approximate_window_table(problem, k: int):
+    """Approximate values for every angle (1°) at translations of a coarse lattice.
+
+    Returns ``(ts, table)``: translations in cells [(a, b), ...] (multiples of the pooling factor, the
+    window's edges included) and a (len(ts), 360) array."""
+    n, res = problem.n, problem.ref.resolution
+    pool = max(POLAR_POOL_MIN, int(round(n / POLAR_TARGET_CELLS)), int(math.ceil(k / MAX_LATTICE_STEPS)))
+    lay = polar_layout(n, res, pool, True)
+    mov = polar_spectra(problem.moving, problem.center_moving, lay)
+    kp = max(1, int(round(k / pool)))  # lattice steps of one pooled cell, covering about ±k
+    ts = [(x * pool, y * pool) for y in range(-kp, kp + 1) for x in range(-kp, kp + 1)]
+    # the reference's pooled crop about c_ref, wide enough for every shift
+    ref = problem.ref
+    reach = n * res / 2.0 * math.sqrt(2) + 2 * res * pool + kp * pool * res
+    cx, cy = problem.center_ref
+    c0 = int(math.floor((cx - reach - ref.origin[0]) / res))
+    r0 = int(math.floor((cy - reach - ref.origin[1]) / res))
+    size = (int(math.ceil(2 * reach / res)) + 2 + pool - 1) // pool * pool
+    crop = np.zeros((size, size), np.uint8)
+    gc0, gc1 = max(c0, 0), min(c0 + size, ref.width)
+    gr0, gr1 = max(r0, 0), min(r0 + size, ref.height)
+    if gc0 < gc1 and gr0 < gr1:
+        crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = ref.states[gr0:gr1, gc0:gc1]
+    pooled = _max_pool(crop, pool)
+    ps = pooled.shape[0]
+    pres = res * pool
+    ox, oy = ref.origin[0] + c0 * res, ref.origin[1] + r0 * res  # crop corner (metres)
+    ix = np.clip(np.floor((lay.x + (cx - ox)) / pres).astype(np.intp), kp, ps - 1 - kp)
+    iy = np.clip(np.floor((lay.y + (cy - oy)) / pres).astype(np.intp), kp, ps - 1 - kp)
+    base = np.where(lay.mask, iy * ps + ix, -1)
+    shifts = np.array([(b // pool) * ps + a // pool for a, b in ts], np.intp)
+    flat = np.append(pooled.reshape(-1), np.uint8(0))  # index −1 (outside the ROI square): unknown
+    idx = base[None, :] + shifts[:, None]
+    idx[:, base < 0] = -1
+    s = flat[idx]
+    values = np.stack([s == OCCUPIED_S, s == FREE_S], axis=1).astype(np.float32)
+    spec = _spectra(lay, values.reshape(-1, values.shape[-1])).reshape(len(ts), 2, -1, mov.shape[-1])
+    bc = np.conj(mov)
+    pairs = [spec[:, 0] * bc[0], spec[:, 0] * bc[1] + spec[:, 1] * bc[0]]
+    if problem.measure == "birk_carpin":
+        pairs.append(spec[:, 1] * bc[1])
+    elif problem.measure == "ncc":
+        pairs += [np.broadcast_to(lay.mask_spec[0] * bc[0], spec[:, 0].shape),
+                  spec[:, 0] * np.conj(lay.mask_spec[0])[None]]
+    sp = np.stack([p.sum(axis=1) for p in pairs], axis=1)  # (T, P, 181)
+    corr = sfft.irfft(sp, n=PROFILE_LEN, axis=-1)
+    agr, dis = corr[:, 0], corr[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if problem.measure == "similarity":
+            val = agr / (agr + dis)
+        elif problem.measure == "birk_carpin":
+            val = (agr + corr[:, 2]) / (agr + corr[:, 2] + dis)
+        else:
+            size_c = float(n / pool) ** 2
+            sx, sy = corr[:, 4][:, :1], corr[:, 3]
+            vx, vy = sx - sx * sx / size_c, sy - sy * sy / size_c
+            val = (agr - sx * sy / size_c) / np.sqrt(np.maximum(vx * vy, 1e-12))
+    return ts, np.nan_to_num(val, nan=0.0, posinf=0.0, neginf=0.0), pool
+
+
+def _peaks(ts, table, pool: int, limit: int):
+    """The approximate table's best entries, one per peak (suppressing neighbours within NMS_DEG and a
+    pooled cell), plus the best within OPPOSITE_DEG of the top's half turn."""
+    from .search import angle_diff_deg
+
+    flat_t = table.reshape(-1)
+    m = min(50 * limit, flat_t.size - 1)
+    top_idx = np.argpartition(-flat_t, m)[: m + 1]
+    order = top_idx[np.lexsort((top_idx, -flat_t[top_idx]))]
+    picked: list[tuple[int, int, int]] = []
+    for flat in order:
+        i, th = divmod(int(flat), 360)
+        a, b = ts[i]
+        if any(abs(angle_diff_deg(th, p[0])) <= NMS_DEG and abs(a - p[1]) <= pool and abs(b - p[2]) <= pool
+               for p in picked):
+            continue
+        picked.append((th, a, b))
+        if len(picked) >= limit:
+            break
+    top = picked[0]
+    opp = np.abs(angle_diff_deg(np.arange(360.0), top[0] + 180.0)) <= OPPOSITE_DEG
+    sub = np.where(opp[None, :], table, -np.inf)
+    i, th = np.unravel_index(int(np.argmax(sub)), sub.shape)
+    cand = (int(th), *ts[int(i)])
+    if all(abs(angle_diff_deg(cand[0], p[0])) > NMS_DEG for p in picked):
+        picked.append(cand)
+    return picked
+
+
+def fast_window_search(problem):
+    """The fast rotation × translation search (see the module documentation)."""
+    from .search import Alignment, fine_angles, runner_up, wrap_deg
+
+    k = problem.window_cells
+    # the reference's tie order over translations (nearest first), as a rank per (b, a)
+    rank = np.empty((2 * k + 1, 2 * k + 1), np.int64)
+    for i, (a, b) in enumerate(translation_offsets(k)):
+        rank[b + k, a + k] = i
+    ts_c, table, pool = approximate_window_table(problem, k)
+    starts = _peaks(ts_c, table, pool, WINDOW_CANDIDATES)
+    ev = WindowEvaluator(problem)
+
+    def best_in(th: int, a: int, b: int, r: int):
+        """The best (value, −rank, −θ) of θ ± 1° × the box of half side r about (a, b), in the window."""
+        x0, x1, y0, y1 = max(-k, a - r), min(k, a + r), max(-k, b - r), min(k, b + r)
+        gy, gx = np.divmod(np.arange((x1 - x0 + 1) * (y1 - y0 + 1)), x1 - x0 + 1)
+        gx += x0
+        gy += y0
+        rk = rank[gy + k, gx + k]
+        best = None
+        for x in ((th - 1) % 360, th, (th + 1) % 360):
+            v = ev.evaluate_ab(float(x), gx, gy)
+            j = int(np.lexsort((rk, -v))[0])  # the best value, then the lowest rank
+            key = (float(v[j]), -int(rk[j]), -x)
+            if best is None or key > best[0]:
+                best = (key, x, (int(gx[j]), int(gy[j])))
+        return best
+
+    best = None
+    walked: set = set()  # points an earlier climb stepped from (r = 1): from there it is the same climb
+    for th0, a0, b0 in starts:
+        th, t = th0, (a0, b0)
+        r = max(1, pool // 2)  # first look: the pooled cell around the start
+        key = None
+        for _ in range(1000):
+            if r == 1 and (th, t) in walked:
+                key = None  # joins an earlier climb, whose end is already counted
+                break
+            if r == 1:
+                walked.add((th, t))
+            key, x, tt = best_in(th, *t, r)
+            if (x, tt) == (th, t) and r == 1:
+                break
+            th, t, r = x, tt, 1
+        if key is not None and (best is None or key > best[0]):
+            best = (key, th, t)
+    _, th_c, tc = best
+    sub = problem.at(*tc)
+    sev = SparseEvaluator(sub)
+    fine = [float(a) for a in fine_angles(float(th_c))]
+    values = sev.scores(fine)
+    kf = int(np.argmax(values))
+    theta = wrap_deg(fine[kf])
+    profile = table.max(axis=0)
+    for x, tab in ev.values.items():
+        if float(x).is_integer() and not np.isnan(tab).all():
+            profile[int(x)] = np.nanmax(tab)
+    al = Alignment(theta, float(values[kf]), lambda: sev.similarity(fine[kf]).counts, problem.measure,
+                   "fast", problem.roi_m, profile, lambda: runner_up(profile, theta),
+                   window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,
+                   fine=(np.asarray(fine), np.asarray(values, np.float64)))
+    return refine_alignment(problem, al, ev) if problem.refine else al
+
+
+# --- sub-cell refinement -----------------------------------------------------------------------------
+REFINE_SIGMA_CELLS = 1.0  # the smoothing of the reference's occupied cells (a likelihood field)
+REFINE_MAX_DEG = 1.0  # the refinement stays within the thesis's fine window (±1°) of the grid angle ...
+REFINE_MAX_CELLS = 1.0  # ... and within one cell of the grid translation (and inside the window)
+
+
+def _plateau_middle(angles: np.ndarray, vals: np.ndarray, i: int) -> float:
+    """The middle of the run of fine angles around index ``i`` whose score equals the best one."""
+    top = vals[i]
+    lo = hi = i
+    while lo > 0 and vals[lo - 1] == top:
+        lo -= 1
+    while hi < vals.size - 1 and vals[hi + 1] == top:
+        hi += 1
+    return float(angles[lo] + angles[hi]) / 2.0
+
+
+def refine_alignment(problem, al, evaluator=None):
+    """The alignment refined below the search grid; the grid answer stays in ``theta_grid_deg`` and
+    ``translation_grid_m``.
+
+    1. Ties first: where several fine angles share the best score (a plateau), θ starts at its middle.
+    2. Then a continuous local optimisation of a smooth score: the reference's occupied cells blurred
+       (Gaussian, σ = 1 cell) into a likelihood field, read bilinearly at the moving ROI's occupied cell
+       centres placed by (θ, t); a pattern search (steps halved down to 0.005° and 1/32 cell) within
+       ±1° of the start and ±1 cell of the grid translation (and inside the window). The field and
+       the points are real-valued, so the optimum lies between grid values; a symmetric score (a map
+       against itself) does not move the start. With no window only θ moves.
+    """
+    from dataclasses import replace
+
+    from .search import fine_angles, wrap_deg
+
+    theta_g = al.theta_grid_deg
+    a0, b0 = al.cells
+    if al.fine is not None and np.any(np.isclose(wrap_deg(al.fine[0]), theta_g, atol=1e-9)):
+        angles, vals = al.fine
+    else:
+        angles = fine_angles(theta_g)
+        vals = SparseEvaluator(problem.at(a0, b0)).scores([float(x) for x in angles])
+    angles = np.asarray(angles, np.float64)
+    vals = np.asarray(vals, np.float64)
+    i = int(np.flatnonzero(np.isclose(wrap_deg(angles), theta_g, atol=1e-9))[0])
+    theta0 = _plateau_middle(angles, vals, i)
+    t0 = problem.offset_m(a0, b0)
+    theta, t = _smooth_refine(problem, theta0, t0)
+    return replace(al, theta_deg=wrap_deg(round(theta, 9)), translation_m=t, refined=True)
+
+
+def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, float]]:
+    import cv2
+
+    from .transform import rotation
+
+    ref, mov = problem.ref, problem.moving
+    res = ref.resolution
+    n = problem.n
+    half = n * res / 2.0
+    w_m = problem.window_m if problem.window_cells > 0 else 0.0
+    # moving ROI's occupied cell centres, relative to the moving center (metres)
+    cm = np.asarray(problem.center_moving, np.float64)
+    rm = mov.resolution
+    c0 = max(int(math.floor((cm[0] - half * math.sqrt(2) - mov.origin[0]) / rm)), 0)
+    c1 = min(int(math.ceil((cm[0] + half * math.sqrt(2) - mov.origin[0]) / rm)), mov.width)
+    r0 = max(int(math.floor((cm[1] - half * math.sqrt(2) - mov.origin[1]) / rm)), 0)
+    r1 = min(int(math.ceil((cm[1] + half * math.sqrt(2) - mov.origin[1]) / rm)), mov.height)
+    if c0 >= c1 or r0 >= r1:
+        return theta0, (float(t0[0]), float(t0[1]))
+    rr, cc = np.nonzero(mov.states[r0:r1, c0:c1] == OCCUPIED_S)
+    p = np.stack([mov.origin[0] + (cc + c0 + 0.5) * rm, mov.origin[1] + (rr + r0 + 0.5) * rm], axis=1) - cm
+    p = p[(np.abs(p) < half).all(axis=1)]  # inside the moving ROI's square
+    if p.shape[0] < 3:
+        return theta0, (float(t0[0]), float(t0[1]))
+    # the reference's occupied cells around c_ref, blurred
+    cr = np.asarray(problem.center_ref, np.float64)
+    reach = half * math.sqrt(2) + w_m + 4 * res
+    g0 = int(math.floor((cr[0] - reach - ref.origin[0]) / res))
+    h0 = int(math.floor((cr[1] - reach - ref.origin[1]) / res))
+    size = int(math.ceil(2 * reach / res)) + 2
+    crop = np.zeros((size, size), np.float32)
+    gc0, gc1 = max(g0, 0), min(g0 + size, ref.width)
+    gr0, gr1 = max(h0, 0), min(h0 + size, ref.height)
+    if gc0 < gc1 and gr0 < gr1:
+        crop[gr0 - h0:gr1 - h0, gc0 - g0:gc1 - g0] = ref.states[gr0:gr1, gc0:gc1] == OCCUPIED_S
+    field = cv2.GaussianBlur(crop, (0, 0), REFINE_SIGMA_CELLS)
+    org = np.array([ref.origin[0] + g0 * res, ref.origin[1] + h0 * res])
+
+    def scores(cands):
+        """Mean field value at the moving points for each (θ, tx, ty)."""
+        xs, ys = [], []
+        for th, tx, ty in cands:
+            q = p @ rotation(th).T + (cr + (tx, ty))
+            u = (q - org) / res - 0.5  # pixel-centre coordinates of the crop
+            xs.append(u[:, 0])
+            ys.append(u[:, 1])
+        mx = np.asarray(xs, np.float32)
+        my = np.asarray(ys, np.float32)
+        out = cv2.remap(field, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return out.astype(np.float64).mean(axis=1)
+
+    x = np.array([theta0, float(t0[0]), float(t0[1])])
+    lo = np.array([theta0 - REFINE_MAX_DEG, t0[0] - REFINE_MAX_CELLS * res, t0[1] - REFINE_MAX_CELLS * res])
+    hi = np.array([theta0 + REFINE_MAX_DEG, t0[0] + REFINE_MAX_CELLS * res, t0[1] + REFINE_MAX_CELLS * res])
+    if w_m > 0:
+        lo[1:] = np.maximum(lo[1:], -w_m)
+        hi[1:] = np.minimum(hi[1:], w_m)
+    else:
+        lo[1:] = hi[1:] = 0.0
+    step = np.array([0.1, 0.25 * res, 0.25 * res])
+    dims = [0] if w_m == 0 else [0, 1, 2]
+    best = scores([x])[0]
+    for _ in range(200):
+        cands = []
+        for d in dims:
+            for sgn in (-1.0, 1.0):
+                y = x.copy()
+                y[d] = min(max(y[d] + sgn * step[d], lo[d]), hi[d])
+                if y[d] != x[d]:
+                    cands.append(y)
+        v = scores(cands) if cands else np.empty(0)
+        j = int(np.argmax(v)) if v.size else -1
+        if j >= 0 and v[j] > best * (1 + 1e-9) + 1e-12:
+            x, best = cands[j], float(v[j])
+            continue
+        step /= 2.0
+        if step[0] < 0.005 and step[1] < res / 32:
+            break
+    return float(x[0]), (float(x[1]), float(x[2]))

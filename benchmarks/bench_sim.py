@@ -13,7 +13,10 @@ It runs, in the same process and one after the other:
 2. the same tour recorded to a temporary .rrd (the ``circsim run --rrd`` path): the recording overhead
    as a wall-time ratio, and the file size;
 3. the reference search (``merger.method=reference``) on the first ``--reference-s`` simulated seconds
-   of the same scenario, against the fast search on the same span: the per-cycle ratio.
+   of the same scenario, against the fast search on the same span: the per-cycle ratio;
+4. the same tour with the translation window (``merger.window_m``, default 0.5 m) and every given center
+   off by ``--window-error`` (default 0.25 m): realtime factor and cycle cost against run 1 (issue 9's
+   target: ≥ 5× real time on scene 1).
 
 The metrics of (1) and (2) must be identical (recording is an observer; a difference is a bug and is
 reported as such).
@@ -57,6 +60,11 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-s", type=float, default=8.0, help="simulated seconds of the reference comparison")
     ap.add_argument("--quick", action="store_true", help="20 s tour, 4 s reference comparison")
     ap.add_argument("--no-record", action="store_true", help="skip the recording overhead run")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
+                    help="override a scenario value for every run (repeatable)")
+    ap.add_argument("--window", type=float, default=0.5,
+                    help="4.: the same run with this merger.window_m and center error --window-error (0: skip)")
+    ap.add_argument("--window-error", type=float, default=0.25, help="center error of run 4, metres")
     args = ap.parse_args(argv)
 
     from circsim.cli import resolve_scenario
@@ -65,6 +73,8 @@ def main(argv=None) -> int:
     duration = 20.0 if args.quick and args.duration is None else args.duration
     if duration is not None:
         sc = sc.with_overrides([f"duration_s={duration}"])
+    if args.set:
+        sc = sc.with_overrides(args.set)
     ref_s = 4.0 if args.quick else args.reference_s
     print(f"python {platform.python_version()}  cpus {os.cpu_count()}  load "
           + " ".join(f"{v:.2f}" for v in os.getloadavg()))
@@ -110,6 +120,20 @@ def main(argv=None) -> int:
     print(f"   {'fast':>10} {fast_wall:>8.1f} {fast_res.realtime_factor:>10.3f} {len(fast_res.cycle_ms):>7} {fm:>18.1f}")
     print(f"   ratio reference/fast: run {ref_wall / fast_wall:.0f}×, merge cycle {rm / fm:.0f}×; "
           f"same first merges: {'yes' if same else 'no'}")
+    if args.window > 0:
+        wsc = sc.with_overrides([f"merger.window_m={args.window}",
+                                 f"center_error.magnitude_m={args.window_error}"])
+        wres, wwall, wcpu = _run(wsc)
+        wc = wres.cycle_ms
+        print(f"\n4. the translation window: merger.window_m={args.window:g}, every center off by "
+              f"{args.window_error:g} m (run 1's settings otherwise)")
+        print(f"   wall {wwall:.1f} s (CPU {wcpu:.1f} s)   realtime_factor {wres.realtime_factor:.2f}×   "
+              f"merge cycles {len(wc)}: median {statistics.median(wc):.1f} ms, "
+              f"p95 {sorted(wc)[int(0.95 * (len(wc) - 1))]:.1f} ms "
+              f"({statistics.median(wc) / statistics.median(cyc):.1f}× run 1's median)")
+        print("   first merges: " + ", ".join(
+            f"{n} {m.first_merge_s:.1f} s/{m.first_merge_arc_deg:.0f}°" if m.first_merge_s is not None
+            else f"{n} never" for n, m in wres.robots.items()) + f"   false merges {wres.false_merges}")
     print("load at the end " + " ".join(f"{v:.2f}" for v in os.getloadavg()))
     return 0
 

@@ -119,10 +119,12 @@ def method_params(sc: Scenario, method: str, settings: OfflineSettings) -> Merge
     search = settings.search_method or default_search_method()
     if method == "ncc":
         return MergeParams(roi_m=m.roi_m, measure="ncc", method=search, verification="roi_score",
-                           score_min=settings.ncc_score_min, window_m=m.window_m, refine=m.refine)
+                           score_min=settings.ncc_score_min, window_m=m.window_m, refine=m.refine,
+                           ambiguity_margin=m.ambiguity_margin)
     if method == "similarity":
         return MergeParams(roi_m=m.roi_m, measure="similarity", method=search, verification="whole_map",
-                           nu_min=m.nu_min, min_support=m.min_support, window_m=m.window_m, refine=m.refine)
+                           nu_min=m.nu_min, min_support=m.min_support, window_m=m.window_m, refine=m.refine,
+                           ambiguity_margin=m.ambiguity_margin)
     raise ValueError(f"unknown offline method {method!r}; expected one of {', '.join(METHODS)}")
 
 

@@ -242,7 +242,7 @@ class RerunRecorder(Observer):
         else:
             note = " (this hypothesis was correct)" if c.correct else ""
             self._text(n, "INFO", f"rejected merge: best order {order}, θ {thetas}; ν {nus}: "
-                                  f"{top.reason}{note}")
+                                  f"{res.reason}{note}")
 
     def on_event(self, t: float, level: str, text: str) -> None:
         self._at(t, self.step)

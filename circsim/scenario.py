@@ -169,6 +169,7 @@ class MergerSettings:
     refine: bool = True
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
+    ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -306,7 +307,8 @@ _MERGER = section(MergerSettings, {
     "roi_m": _POS, "measure": choice("similarity", "birk_carpin", "ncc"),
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
-    "window_m": _NONNEG, "refine": boolean, "correct_tol_deg": _POS, "correct_tol_m": _POS})
+    "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
+    "correct_tol_deg": _POS, "correct_tol_m": _POS})
 _OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
                                "merged_log_period_s": optional(_NONNEG)})
 _TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",

@@ -176,15 +176,16 @@ def clear_merger_caches() -> None:
 class HypothesisStats(Observer):
     """What the merge cycles proposed, beyond the DESIGN metrics.
 
-    ``near_180_proposed`` / ``near_180_accepted``: order hypotheses with a ~180° error (|err − 180°| ≤ 10°
-    for some map) and how many of them were accepted. ``top_error_deg.median``: median over the cycles
+    ``near_180_proposed`` / ``near_180_accepted`` / ``near_180_chosen``: order hypotheses with a ~180° error
+    (|err − 180°| ≤ 10° for some map), how many of them passed whole-map verification, and how many were
+    the cycle's accepted choice (each of those is also a false merge). ``top_error_deg.median``: median over the cycles
     of the largest angle error of the cycle's best hypothesis (how far from ground truth the merger's
     answer is, accepted or not); ``top_translation_error_m.median``: the same for its translation error
     |t − t*| in metres.
     """
 
     def __init__(self, tol_deg: float = 10.0) -> None:
-        self.tol_deg, self.proposed, self.accepted = tol_deg, 0, 0
+        self.tol_deg, self.proposed, self.accepted, self.chosen = tol_deg, 0, 0, 0
         self.top_errors: list[float] = []
         self.top_t_errors: list[float] = []
 
@@ -196,11 +197,13 @@ class HypothesisStats(Observer):
                    for k in o.theta_deg):
                 self.proposed += 1
                 self.accepted += o.accepted
+                self.chosen += o is c.result.chosen
         self.top_errors.append(max(c.angle_error_deg.values(), default=0.0))
         self.top_t_errors.append(max(c.translation_error_m.values(), default=0.0))
 
     def columns(self) -> dict:
         return {"near_180_proposed": self.proposed, "near_180_accepted": self.accepted,
+                "near_180_chosen": self.chosen,
                 "top_error_deg.median": statistics.median(self.top_errors) if self.top_errors else None,
                 "top_translation_error_m.median":
                     statistics.median(self.top_t_errors) if self.top_t_errors else None}
@@ -439,6 +442,7 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
         s["runs_with_false_merge"] = sum(r["false_merges"] > 0 for r in rs)
         s["near_180_proposed.total"] = sum(r.get("near_180_proposed") or 0 for r in rs)
         s["near_180_accepted.total"] = sum(r.get("near_180_accepted") or 0 for r in rs)
+        s["near_180_chosen.total"] = sum(r.get("near_180_chosen") or 0 for r in rs)
         out.append(s)
     return out
 

@@ -26,6 +26,9 @@ from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
 from .verify import Verification, pairwise, verify
 
 VERIFICATIONS = ("whole_map", "roi_score")
+AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
+AMBIGUOUS_DEG = 10.0  # ... elsewhere: more than this apart in angle
+AMBIGUOUS_M = 0.2  # ... or more than this apart in translation
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,11 @@ class MergeParams:
     verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
         method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
         cross-correlation method, which had only a threshold on the correlation coefficient).
+    ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted
+        order places some map more than 10° or 0.2 m away from the chosen order's placement is rejected as
+        ambiguous unless the chosen order's mean ν exceeds that order's by at least this margin. A wider
+        search finds more spurious peaks: on the point-symmetric scene 1, a half turn plus a translation
+        of ~0.35 m passes whole-map verification (ν ≈ 0.7) beside the correct order (ν ≈ 0.78).
     window_m : translation window, metres: every pair is searched over rotations and translations
         within ±window_m on each axis (:mod:`merger.window`), for centers known only roughly; 0 is the
         thesis's rotation-only search. At most a quarter of ``roi_m``.
@@ -54,6 +62,15 @@ class MergeParams:
     score_min: float = 0.5
     window_m: float = 0.5
     refine: bool = True
+    ambiguity_margin: float | None = None
+
+    @property
+    def margin(self) -> float:
+        """The ambiguity margin in force: ``ambiguity_margin``, or by default 0.05 with a translation
+        window and 0 without one (the thesis's rule: the highest Σν wins)."""
+        if self.ambiguity_margin is not None:
+            return float(self.ambiguity_margin)
+        return AMBIGUITY_MARGIN if self.window_m > 0 else 0.0
 
     def __post_init__(self) -> None:
         if self.verification not in VERIFICATIONS:
@@ -68,6 +85,9 @@ class MergeParams:
                 or self.min_support < 0:
             raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
         check_window(self.window_m, self.roi_m)
+        m = self.ambiguity_margin
+        if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
+            raise ValueError(f"ambiguity_margin must be a number in [0, 1] (or None), got {m!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +159,14 @@ class TeamMergeResult:
     merged: OccupancyGrid | None = field(repr=False)
     layers: dict[str, OccupancyGrid] = field(repr=False)
     wall_ms: float = 0.0
+    ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
+
+    @property
+    def reason(self) -> str:
+        """Why the cycle was not accepted ("" when it was)."""
+        if self.accepted:
+            return ""
+        return self.ambiguity or self.top.reason
 
     @property
     def accepted(self) -> bool:
@@ -155,6 +183,7 @@ class TeamMergeResult:
 
     def to_dict(self) -> dict:
         return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
+                "ambiguity": self.ambiguity,
                 "chosen": self.chosen.to_dict() if self.chosen else None,
                 "orders": [o.to_dict() for o in self.orders]}
 
@@ -340,15 +369,41 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     results = [_order_result(maps, o, params, place0, steps, warps)
                for o, (place0, steps) in zip(orders, aligned, strict=True)]
     accepted = [k for k, r in enumerate(results) if r.accepted]
-    chosen, merged, layers = None, None, {}
+    chosen, merged, layers, ambiguity = None, None, {}, ""
     if accepted:
         best = max(accepted, key=lambda k: results[k].nu_sum)  # the first of equal sums
-        chosen = results[best]
+        ambiguity = _ambiguity(results, accepted, best, params.margin)
+        chosen = None if ambiguity else results[best]
+    if chosen is not None:
         lay = place_on_frame0(maps, aligned[best][0], warps)
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
     return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
-                           (time.perf_counter() - t0) * 1e3)
+                           (time.perf_counter() - t0) * 1e3, ambiguity)
+
+
+def _ambiguity(results: list[OrderResult], accepted: list[int], best: int, margin: float) -> str:
+    """Why the best accepted order is ambiguous ("" if it is not): another accepted order places some map
+    more than AMBIGUOUS_DEG or AMBIGUOUS_M away, and the best's mean ν beats it by less than ``margin``."""
+    if margin <= 0:
+        return ""
+    b = results[best]
+    npairs = max(len(b.checks), 1)
+    for k in accepted:
+        o = results[k]
+        if k == best:
+            continue
+        for name in b.theta_deg:
+            dth = abs(angle_diff_deg(o.theta_deg[name], b.theta_deg[name]))
+            dt = math.dist(o.translation(name), b.translation(name))
+            if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
+                gap = (b.nu_sum - o.nu_sum) / npairs
+                if gap < margin:
+                    return (f"ambiguous: order {'→'.join(o.order)} also passes and places {name} "
+                            f"{dth:.1f}° / {dt:.2f} m away; mean ν {b.nu_sum / npairs:.3f} vs "
+                            f"{o.nu_sum / npairs:.3f} (margin {margin:g})")
+                break
+    return ""
 
 
 def fused_layers(maps: list[MapInput], theta_deg: dict[str, float],

@@ -545,8 +545,6 @@ def refine_alignment(problem, al, evaluator=None):
 def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, float]]:
     import cv2
 
-    from .transform import rotation
-
     ref, mov = problem.ref, problem.moving
     res = ref.resolution
     n = problem.n
@@ -582,15 +580,14 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
 
     def scores(cands):
         """Mean field value at the moving points for each (θ, tx, ty)."""
-        xs, ys = [], []
-        for th, tx, ty in cands:
-            q = p @ rotation(th).T + (cr + (tx, ty))
-            u = (q - org) / res - 0.5  # pixel-centre coordinates of the crop
-            xs.append(u[:, 0])
-            ys.append(u[:, 1])
-        mx = np.asarray(xs, np.float32)
-        my = np.asarray(ys, np.float32)
-        out = cv2.remap(field, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        c = np.asarray(cands, np.float64)
+        th = np.radians(c[:, 0])
+        cs, sn = np.cos(th)[:, None], np.sin(th)[:, None]
+        base = cr - org
+        mx = ((cs * p[:, 0] - sn * p[:, 1]) + (base[0] + c[:, 1:2])) / res - 0.5  # crop pixel coordinates
+        my = ((sn * p[:, 0] + cs * p[:, 1]) + (base[1] + c[:, 2:3])) / res - 0.5
+        out = cv2.remap(field, mx.astype(np.float32), my.astype(np.float32), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         return out.astype(np.float64).mean(axis=1)
 
     x = np.array([theta0, float(t0[0]), float(t0[1])])

@@ -175,18 +175,20 @@ class WindowEvaluator:
         return rows[j], cols[i], first
 
     def _occupied_cells(self):
-        """Occupied cells of the padded reference that any window's ROI can hold: (rows, cols)."""
+        """Occupied cells of the padded reference that any window's ROI can hold, as flat indices in the
+        padded moving-free image's width (see :meth:`_counts`), and that image's margin."""
         if self._q is None:
-            k, n = self.reach, self.n
-            corners = [self._axis(a, b) for a in (-k, k) for b in (-k, k)]
-            r0 = min(int(c[0][0]) for c in corners)
-            r1 = max(int(c[0][-1]) for c in corners) + 1
-            c0 = min(int(c[1][0]) for c in corners)
-            c1 = max(int(c[1][-1]) for c in corners) + 1
-            sub = self._padO.reshape(self._pad.shape)[r0:r1, c0:c1]
-            qr, qc = np.nonzero(sub)
+            n = self.n
+            (_, _, cf, _), (_, _, rf, _) = self._axes_table()
+            # every window's first padded row/column, unclipped: the windows span [r0, r1) × [c0, c1)
+            r0, r1 = int(rf.min()), int(rf.max()) + n
+            c0, c1 = int(cf.min()), int(cf.max()) + n
             m = self._margin = max(r1 - r0, c1 - c0) - n + 2
-            self._q = (qr + r0) * (n + 2 * m) + (qc + c0)  # flat, in the padded moving-free image's width
+            hp, wp = self._pad.shape
+            sub = self._padO.reshape(self._pad.shape)[max(r0, 0):max(min(r1, hp), 0),
+                                                      max(c0, 0):max(min(c1, wp), 0)]
+            qr, qc = np.nonzero(sub)
+            self._q = (qr + max(r0, 0)) * (n + 2 * m) + (qc + max(c0, 0))
             inside = np.zeros((n + 2 * m, n + 2 * m), bool)
             inside[m:m + n, m:m + n] = True
             self._inside = inside.reshape(-1)
@@ -393,7 +395,7 @@ def approximate_window_table(problem, k: int):
             val = (agr + corr[:, 2]) / (agr + corr[:, 2] + dis)
         else:
             size_c = float(n / pool) ** 2
-            sx, sy = corr[:, 4][:, :1], corr[:, 3]
+            sx, sy = corr[:, 3][:, :1], corr[:, 2]
             vx, vy = sx - sx * sx / size_c, sy - sy * sy / size_c
             val = (agr - sx * sy / size_c) / np.sqrt(np.maximum(vx * vy, 1e-12))
     return ts, np.nan_to_num(val, nan=0.0, posinf=0.0, neginf=0.0), pool

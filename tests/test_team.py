@@ -1,6 +1,7 @@
 """Three-order team merging and the online state, checked against the generated scenes' truth."""
 
 import numpy as np
+import pytest
 
 from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
@@ -113,3 +114,41 @@ def test_merge_team_without_versions_never_reuses(team_views):
     reuse = {}
     merge_team(inputs, MergeParams(roi_m=8.0), reuse=reuse)
     assert reuse == {}
+
+
+def _order(order, theta, t, nus):
+    from merger.similarity import Counts
+    from merger.team import OrderResult
+    from merger.verify import Verification
+
+    checks = {k: Verification(v, Counts(500, 100), True) for k, v in nus.items()}
+    return OrderResult(order, theta, (), checks, True, "", t)
+
+
+def test_ambiguity_rule_rejects_close_rival_placements():
+    from merger.team import MergeParams, _ambiguity
+
+    names = ("A", "B", "C")
+    good = _order(names, {"A": 0.0, "B": 120.0, "C": 240.0}, {"A": (0, 0), "B": (0.01, 0), "C": (0, 0.02)},
+                  {"A|B": 0.80, "A|C": 0.79, "B|C": 0.68})
+    flip = _order(names, {"A": 0.0, "B": 300.0, "C": 240.0}, {"A": (0, 0), "B": (-0.2, -0.31), "C": (0, 0.02)},
+                  {"A|B": 0.80, "A|C": 0.71, "B|C": 0.67})
+    shifted = _order(names, {"A": 0.0, "B": 120.5, "C": 240.0}, {"A": (0, 0), "B": (0.35, 0), "C": (0, 0.02)},
+                     {"A|B": 0.60, "A|C": 0.79, "B|C": 0.60})
+    near = _order(names, {"A": 0.0, "B": 120.3, "C": 240.1}, {"A": (0, 0), "B": (0.03, 0), "C": (0, 0.0)},
+                  {"A|B": 0.80, "A|C": 0.79, "B|C": 0.68})
+    results = [good, flip, shifted, near]
+    # a half-turn rival within 0.03 of mean ν: ambiguous (it names the map and both ν)
+    why = _ambiguity(results, [0, 1], 0, 0.05)
+    assert "ambiguous" in why and "B" in why and "180.0°" in why
+    # the same rival beaten by more than the margin: not ambiguous
+    assert _ambiguity(results, [0, 1], 0, 0.02) == ""
+    # a rival 0.35 m away (same angle) counts too; one that agrees within 10° / 0.2 m does not
+    assert "0.34 m" in _ambiguity(results, [0, 2], 0, 0.2)
+    assert _ambiguity(results, [0, 3], 0, 0.5) == ""
+    # margin 0 is the thesis's rule: the highest sum wins
+    assert _ambiguity(results, [0, 1], 0, 0.0) == ""
+    assert MergeParams(window_m=0.0).margin == 0.0 and MergeParams(window_m=0.5).margin == 0.05
+    assert MergeParams(window_m=0.0, ambiguity_margin=0.1).margin == 0.1
+    with pytest.raises(ValueError, match="ambiguity_margin"):
+        MergeParams(ambiguity_margin=float("nan"))

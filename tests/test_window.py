@@ -239,64 +239,159 @@ def _random_grid(rng, shape, res, origin):
     return OccupancyGrid(rng.choice(3, size=shape, p=p).astype(np.uint8), res, origin)
 
 
-def _random_center(rng, g, mode):
-    """A point in or near ``g``: anywhere, or exactly on a cell corner, a cell centre or an edge midpoint."""
-    i = rng.integers(-4, np.array(g.shape[::-1]) + 4)
+def _point(rng, origin, cells, mode, res):
+    """A point at cell index ``cells`` (per axis) of the lattice of ``origin``: anywhere in the cell, or
+    exactly on its corner, its centre or an edge midpoint (lookups on cell borders)."""
     frac = {"random": rng.random(2), "corner": np.zeros(2), "center": np.full(2, 0.5),
             "edge": np.array([0.0, 0.5])[rng.permutation(2)]}[mode]
-    return tuple(float(o + (v + f) * g.resolution) for o, v, f in zip(g.origin, i, frac, strict=True))
+    return tuple(float(o + (i + f) * res) for o, i, f in zip(origin, cells, frac, strict=True))
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(4, 40), measure=st.sampled_from(MEASURES),
-       mres=st.sampled_from([0.05, 0.05, 0.1, 0.04]), round_origin=st.booleans(),
-       modes=st.tuples(*[st.sampled_from(["random", "corner", "center", "edge"])] * 2),
-       theta=st.one_of(st.floats(0.0, 360.0, exclude_max=True),
-                       st.sampled_from([0.0, 90.0, 180.0, 270.0, 45.0, 359.9, 0.1, 1.0, 123.0]),
-                       st.integers(0, 3599).map(lambda k: k * 0.1), st.integers(0, 359).map(float)))
-def test_window_evaluator_and_rotated_roi_fast_on_small_random_grids(seed, n, measure, mres, round_origin,
-                                                                     modes, theta):
+SMALL = dict(seed=st.integers(0, 2**32 - 1), n=st.integers(4, 40), measure=st.sampled_from(MEASURES),
+             mres=st.sampled_from([0.05, 0.05, 0.1, 0.04]), round_origin=st.booleans(),
+             modes=st.tuples(*[st.sampled_from(["random", "corner", "center", "edge"])] * 2),
+             theta=st.one_of(st.floats(0.0, 360.0, exclude_max=True),
+                             st.sampled_from([0.0, 90.0, 180.0, 270.0, 45.0, 359.9, 0.1, 1.0, 123.0]),
+                             st.integers(0, 3599).map(lambda k: k * 0.1), st.integers(0, 359).map(float)))
+
+
+def _small_problem(seed, n, measure, mres, round_origin, modes, *, ref_holds_the_window: bool):
     rng = np.random.default_rng(seed)
 
     def origin():
         o = rng.uniform(-2.0, 0.5, 2)
         return tuple(float(v) for v in (np.round(o / RES) * RES if round_origin else o))
 
-    ref = _random_grid(rng, tuple(rng.integers(20, 41, 2)), RES, origin())
-    mov = _random_grid(rng, tuple(rng.integers(20, 41, 2)), mres, origin())
-    cr, cm = _random_center(rng, ref, modes[0]), _random_center(rng, mov, modes[1])
     roi = n * RES
     k_max = window_cells(roi / 4, RES)
     w = float(rng.integers(0, k_max + 1)) * RES if rng.random() < 0.5 else float(rng.uniform(0, roi / 4))
+    k = window_cells(w, RES)
+    mov = _random_grid(rng, tuple(rng.integers(20, 41, 2)), mres, origin())
+    cm = _point(rng, mov.origin, rng.integers(-4, np.array(mov.shape[::-1]) + 4), modes[1], mres)
+    if ref_holds_the_window:  # every ROI lattice about c_ref + t, |a|, |b| ≤ K + 1, lies inside the grid
+        lo = n // 2 + k + 3
+        shape = tuple(int(v) for v in rng.integers(20, 41, 2) + 2 * lo)
+        ref = _random_grid(rng, shape, RES, origin())
+        cells = [rng.integers(lo, size - lo) for size in shape[::-1]]
+    else:  # anywhere: the grid may be narrower than the ROI, the center near or beyond its border
+        ref = _random_grid(rng, tuple(rng.integers(20, 41, 2)), RES, origin())
+        cells = rng.integers(-4, np.array(ref.shape[::-1]) + 4)
+    cr = _point(rng, ref.origin, cells, modes[0], RES)
     p = RotationProblem(ref, mov, cr, cm, roi, measure, w)
-    np.testing.assert_array_equal(rotated_roi_fast(mov, theta, cm, p.n, RES),
-                                  rotated_roi(mov, theta, cm, cr, p.n, RES))
-    k = p.window_cells
+    assert p.window_cells == k
     ts = [(a, b) for a in range(-k - 1, k + 2) for b in range(-k - 1, k + 2)]  # the window and one beyond
     if len(ts) > 50:
         ts = [ts[i] for i in rng.choice(len(ts), 50, replace=False)]
+    return p, ts
+
+
+def _inside(p, ts) -> bool:
+    ref = p.ref
+    for a, b in ts:
+        c = p.center_at(a, b)
+        for ax, size in ((0, ref.width), (1, ref.height)):
+            idx = np.floor((c[ax] + np.array([-1, 1]) * (p.n - 1) / 2.0 * RES - ref.origin[ax]) / RES)
+            if idx.min() < 0 or idx.max() >= size:
+                return False
+    return True
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(**SMALL)
+def test_window_evaluator_and_rotated_roi_fast_on_small_random_grids(seed, n, measure, mres, round_origin,
+                                                                     modes, theta):
+    """Random ternary grids, ROIs of 4–40 cells, centers anywhere in a cell or exactly on its borders, the
+    reference grid holding the ROI of every translation (the tests below cover ROIs leaving it)."""
+    p, ts = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=True)
+    assert _inside(p, ts)
+    mov, cm = p.moving, p.center_moving
+    np.testing.assert_array_equal(rotated_roi_fast(mov, theta, cm, p.n, RES),
+                                  rotated_roi(mov, theta, cm, p.center_ref, p.n, RES))
     assert_evaluator_exact(p, [theta, wrap_deg(theta + 0.1)], ts)
 
 
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(**SMALL)
+def test_rotated_roi_fast_equals_rotated_roi_anywhere(seed, n, measure, mres, round_origin, modes, theta):
+    """The same with no limit on where the ROIs fall (off the grids too): the rotated ROI and the
+    evaluator's values."""
+    p, ts = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=False)
+    for a in (theta, wrap_deg(theta + 0.1), wrap_deg(theta + 90.0)):
+        np.testing.assert_array_equal(rotated_roi_fast(p.moving, a, p.center_moving, p.n, RES),
+                                      rotated_roi(p.moving, a, p.center_moving, None, p.n, RES))
+    assert_evaluator_exact(p, [theta], ts)
+
+
+# The ROI lattice about c_ref + t leaving the reference grid (a reference grid narrower than the ROI plus
+# the window, or a center near its border): the evaluator once returned wrong values or raised there (its
+# crop of reference-occupied cells and its margin came from the clipped lattice); these are the minimal
+# cases that showed it.
+def _twenty_by_twenty():
+    rng = np.random.default_rng(0)
+    g = [OccupancyGrid(rng.choice(3, size=(20, 20)).astype(np.uint8), 0.05, (0.0, 0.0)) for _ in range(2)]
+    return g[0], g[1]
+
+
+@pytest.mark.parametrize("c_ref", [(0.0, 0.5), (-0.3, 0.5), (1.5, 1.5), (0.5, 0.5)])
+def test_window_evaluator_with_the_roi_leaving_the_reference_grid(c_ref):
+    ref, mov = _twenty_by_twenty()
+    p = RotationProblem(ref, mov, c_ref, (0.5, 0.5), 1.2, "similarity", 0.1)  # n = 24 cells, K = 2
+    ts = [(a, b) for a in range(-3, 4) for b in range(-3, 4)]  # the window and one cell beyond
+    for theta in (0.0, 33.3, 180.0):
+        got = WindowEvaluator(p).evaluate(theta, ts)
+        want = np.array([p.at(a, b).evaluate(theta).value for a, b in ts])
+        np.testing.assert_array_equal(got, want)
+
+
+def test_windowed_search_on_a_map_smaller_than_the_roi():
+    """merger.align with its defaults (ROI 8 m, window 0.5 m) on a 5 m × 5 m map (a robot's early map):
+    the exhaustive reference handles it (unknown outside the grid); the fast method must agree."""
+    s = np.ones((100, 100), np.uint8)
+    s[::7, ::5] = 2
+    g = OccupancyGrid(s, 0.05)
+    p = RotationProblem(g, g, (2.5, 2.5), (2.5, 2.5), 8.0, "similarity", 0.5)
+    al = merger.align(g, g, center_ref=(2.5, 2.5))
+    assert close_to_zero_deg(al.theta_deg) and max(map(abs, al.translation_m)) <= 1e-9
+    grid = search(p, "fast")
+    assert grid.score == 1.0 and grid.translation_m == (0.0, 0.0)
+
+
 # --- 4. fast vs the exhaustive reference -------------------------------------------------------------
-REF_CASES = [("views", 0), ("views", 1), ("views", 2), ("identical", 0), ("identical", 2),
-             ("sparse", 0), ("sparse", 1), ("sparse", 2)]
+REF_CASES = [("views", 0, "similarity"), ("views", 1, "similarity"), ("views", 2, "similarity"),
+             ("identical", 0, "similarity"), ("identical", 2, "similarity"), ("sparse", 0, "similarity"),
+             ("sparse", 1, "similarity"), ("sparse", 2, "similarity"), ("identical", 1, "birk_carpin"),
+             ("sparse", 3, "birk_carpin")]
 
 
-@pytest.mark.parametrize("kind, seed", REF_CASES)
-def test_fast_window_search_equals_the_reference(kind, seed):
+def _ref_problem(kind, seed, measure):
     c = window_case(seed, kind, roi_m=(3.2, 4.0), window_m=(0.15, 0.3))
-    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity", c.window_m)
+    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, measure, c.window_m)
     assert p.window_cells >= 3
-    ref, fast = search(p, "reference"), search(p, "fast")
+    return p
+
+
+def assert_same_window_answer(p, ref, fast):
     assert (fast.theta_deg, fast.translation_m, fast.cells, fast.score) == \
         (ref.theta_deg, ref.translation_m, ref.cells, ref.score)
     assert fast.counts == ref.counts
     assert (ref.method, fast.method) == ("reference", "fast") and not fast.refined
-    # the reference's score is the exact value of its answer, and the best of its window
+    # the reference's score is the exact value of its answer, within the window
     a, b = ref.cells
     assert ref.score == p.at(a, b).evaluate(ref.theta_deg).value
     assert max(abs(a), abs(b)) <= p.window_cells
+
+
+@pytest.mark.parametrize("kind, seed, measure", REF_CASES)
+def test_fast_window_search_equals_the_reference(kind, seed, measure):
+    p = _ref_problem(kind, seed, measure)
+    assert_same_window_answer(p, search(p, "reference"), search(p, "fast"))
+
+
+def test_fast_window_search_with_ncc():
+    """NCC through the windowed fast search (its approximate stage once read a correlation that does not
+    exist and raised IndexError on every NCC search with a window)."""
+    p = _ref_problem("views", 1, "ncc")
+    assert_same_window_answer(p, search(p, "reference"), search(p, "fast"))
 
 
 # --- 5. a map against itself ---------------------------------------------------------------------------
@@ -345,36 +440,51 @@ def test_rotation_and_translation_recovered_with_a_rough_center(kind, seed):
     assert math.dist(al.translation_m, c.translation_m) <= 0.05, (al.translation_m, c.translation_m)
 
 
-def test_without_the_window_the_same_rough_centers_are_not_recovered():
-    """The control of the test above: the rotation-only search of the same problems misses the truth
-    (its translation is 0, the truth's is R(θ*)·e with |e| up to 0.4√2 m)."""
-    missed = 0
+def test_without_the_window_the_same_rough_centers_cost_the_rotation():
+    """The control of the test above: the rotation-only search (window 0) of the same problems, whose
+    translation is 0 by construction, also misses the rotation by more than 0.5° on most of them (the
+    misplaced center smears the ROI: 0.08–22° here, 69° on sparse seed 6)."""
+    errors = []
     for kind, seed in RECOVERY[::3]:
         c = window_case(seed, kind, roi_m=(8.0, 8.0), window_m=(0.5, 0.5), error_frac=0.8)
-        if math.hypot(*c.error_m) < 0.15:
-            continue
         al = merger.align(c.ref, c.moving, center_ref=c.center_ref, center_moving=c.center_moving, window_m=0.0)
-        missed += math.dist(al.translation_m, c.translation_m) > 0.05
-    assert missed >= 4
+        assert al.translation_m == (0.0, 0.0)
+        errors.append(abs(angle_diff_deg(al.theta_deg, c.theta_deg)))
+    assert sum(e > 0.5 for e in errors) >= 6, errors
+
+
+def _whole_map_checks(c, hypotheses):
+    """Whole-map verification (merge_team's rule) of (θ, t) hypotheses of c.moving onto c.ref."""
+    maps = [MapInput("a", c.ref, c.center_ref), MapInput("b", c.moving, c.center_moving)]
+    params = MergeParams()
+    out = []
+    for theta, t in hypotheses:
+        lay = place_on_frame0(maps, {0: (0.0, (0.0, 0.0)), 1: (theta, tuple(t))})
+        out.append(verify(lay[0].states, lay[1].states, nu_min=params.nu_min, min_support=params.min_support))
+    return out
 
 
 def test_a_half_turn_of_a_point_symmetric_scene_is_not_told_apart_by_verification():
-    """The "symmetric" kind (a point-symmetric room seen over a short arc): seed 2's best ROI hypothesis is
-    the 180° one. The scene itself is point-symmetric, so the whole-map verification does not reject it
-    either (ν ≥ ν_min): this ambiguity is the scene's, not the search's. Recorded as it is."""
+    """The "symmetric" kind (a point-symmetric room, no boxes, seen over a short arc): seed 2's best ROI
+    hypothesis is the 180° one (so are seeds 17, 19, 23–26 of 0–29). The scene itself is point-symmetric,
+    so whole-map verification passes it as well as the truth: the ambiguity is the scene's. Recorded as
+    it is (not a requirement on the search)."""
     c = window_case(2, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
     p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 0.5, True)
     al = search(p, "fast")
     assert abs(angle_diff_deg(al.theta_deg, c.theta_deg + 180.0)) <= 0.5
-    res = merge_team([MapInput("a", c.ref, c.center_ref), MapInput("b", c.moving, c.center_moving)])
-    assert res.accepted and abs(angle_diff_deg(res.chosen.theta_deg["b"], c.theta_deg + 180.0)) <= 0.5
+    v_true, v_flip = _whole_map_checks(c, [(c.theta_deg, c.translation_m), (al.theta_deg, al.translation_m)])
+    assert v_true.passed and v_flip.passed, (v_true, v_flip)
 
 
-def test_a_half_turn_with_a_rough_center_fails_whole_map_verification():
+@pytest.mark.parametrize("kind, seed", [("views", 3), ("views", 8), ("views", 10)])
+def test_a_half_turn_with_a_rough_center_fails_whole_map_verification(kind, seed):
     """A room with walls off the center (not point-symmetric): the best (θ, t) near the half turn — by the
     exact evaluator over the whole window, θ* + 180° ± 4° — fails the whole-map verification that the
-    truth passes. (No "views"/"sparse" seed of the recovery test has its best hypothesis there.)"""
-    c = window_case(3, "views", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
+    truth passes. (No "views"/"sparse" seed of the recovery test has its best hypothesis there. The
+    "sparse" kind is not used here: its true alignments fail whole-map verification too, ν = 0.19–0.39
+    for seeds 0–11 — pillars and boxes without walls give little whole-map agreement.)"""
+    c = window_case(seed, kind, roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
     p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 0.5)
     ev = WindowEvaluator(p)
     k = p.window_cells
@@ -382,13 +492,7 @@ def test_a_half_turn_with_a_rough_center_fails_whole_map_verification():
     flip = round(c.theta_deg + 180.0)
     best = max((float(v), float(th % 360), ts[i]) for th in range(flip - 4, flip + 5)
                for i, v in enumerate(ev.evaluate(float(th % 360), ts)))
-    maps = [MapInput("a", c.ref, c.center_ref), MapInput("b", c.moving, c.center_moving)]
-    params = MergeParams()
-    verdicts = []
-    for theta, t in ((c.theta_deg, c.translation_m), (best[1], p.offset_m(*best[2]))):
-        lay = place_on_frame0(maps, {0: (0.0, (0.0, 0.0)), 1: (theta, t)})
-        verdicts.append(verify(lay[0].states, lay[1].states, nu_min=params.nu_min,
-                               min_support=params.min_support))
+    verdicts = _whole_map_checks(c, [(c.theta_deg, c.translation_m), (best[1], p.offset_m(*best[2]))])
     assert verdicts[0].passed and not verdicts[1].passed, verdicts
 
 

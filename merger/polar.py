@@ -108,10 +108,16 @@ def _crop(grid: OccupancyGrid, center, lay: PolarLayout):
     """The grid's cells around ``center`` out to the ROI's corners (unknown outside), and the crop's
     origin; the side is a multiple of the pooling factor."""
     res, p = grid.resolution, lay.pool
-    reach = lay.n * lay.res / 2.0 * math.sqrt(2) + 2 * res * p
+    return square_crop(grid, center, lay.n * lay.res / 2.0 * math.sqrt(2) + 2 * res * p, p)
+
+
+def square_crop(grid: OccupancyGrid, center, reach: float, multiple: int = 1):
+    """The grid's cells within ``reach`` metres of ``center`` on each axis (unknown outside the grid), as a
+    square whose side is a multiple of ``multiple``; and the crop's origin (metres)."""
+    res = grid.resolution
     c0 = int(math.floor((center[0] - reach - grid.origin[0]) / res))
     r0 = int(math.floor((center[1] - reach - grid.origin[1]) / res))
-    size = (int(math.ceil(2 * reach / res)) + 2 + p - 1) // p * p
+    size = (int(math.ceil(2 * reach / res)) + 2 + multiple - 1) // multiple * multiple
     crop = np.zeros((size, size), np.uint8)
     gc0, gc1 = max(c0, 0), min(c0 + size, grid.width)
     gr0, gr1 = max(r0, 0), min(r0 + size, grid.height)

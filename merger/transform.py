@@ -119,6 +119,22 @@ def _near_integer(a: np.ndarray, b: np.ndarray, eps: float):
     return rows, order[k % a.size]
 
 
+def _affine_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, a, b, c, d, size):
+    """``cv2.warpAffine`` (nearest) of the moving states onto a target of ``size`` (w, h) whose cell
+    (i, j) looks up the continuous moving-cell coordinates (a[j] + b[i], c[j] + d[i]) (rotation ``r``,
+    ``step`` target cells per moving cell); and the cells whose lookup lies within 1/512 cell of a border,
+    where OpenCV's fixed-point arithmetic could pick the neighbour: (rows, cols, u_x, u_y) in float64."""
+    m = np.array([[r[0, 0] * step, r[0, 1] * step, a[0] + b[0] - 0.5],
+                  [r[1, 0] * step, r[1, 1] * step, c[0] + d[0] - 0.5]])  # pixel-centre convention
+    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, size,
+                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+    ix, jx = _near_integer(a, b, _WARP_EPS)
+    iy, jy = _near_integer(c, d, _WARP_EPS)
+    i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
+    return out, (i, j, a.take(j) + b.take(i), c.take(j) + d.take(i))
+
+
 def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
                       target: OccupancyGrid):
     """States of :func:`warp_grid` via ``cv2.warpAffine``; None when the sizes are out of its range."""
@@ -138,16 +154,8 @@ def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, ce
                         c[0] + d[0], c[-1] + d[0], c[0] + d[-1], c[-1] + d[-1]])
     if not np.abs(corners).max() < _WARP_MAX_COORD:
         return None
-    m = np.array([[r[0, 0] * rt / rm, r[0, 1] * rt / rm, a[0] + b[0] - 0.5],
-                  [r[1, 0] * rt / rm, r[1, 1] * rt / rm, c[0] + d[0] - 0.5]])  # pixel-centre convention
-    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, (w, h),
-                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
-    ix, jx = _near_integer(a, b, _WARP_EPS)
-    iy, jy = _near_integer(c, d, _WARP_EPS)
-    if ix.size + iy.size:
-        i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
-        ux, uy = a.take(j) + b.take(i), c.take(j) + d.take(i)
+    out, (i, j, ux, uy) = _affine_nearest(moving, r, rt / rm, a, b, c, d, (w, h))
+    if i.size:
         col, row = np.floor(ux), np.floor(uy)
         inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
         cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
@@ -252,17 +260,8 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
                       c[0] + d[0], c[-1] + d[-1], c[0] + d[-1], c[-1] + d[0]])
     if not corners.max() < _WARP_MAX_COORD:
         return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-    step = resolution / rm
-    m = np.array([[r[0, 0] * step, r[0, 1] * step, a[0] + b[0] - 0.5],
-                  [r[1, 0] * step, r[1, 1] * step, c[0] + d[0] - 0.5]])
-    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, (n, n),
-                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
-    ix, jx = _near_integer(a, b, _WARP_EPS)
-    iy, jy = _near_integer(c, d, _WARP_EPS)
-    if ix.size + iy.size:
-        i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
-        ux, uy = a.take(j) + b.take(i), c.take(j) + d.take(i)
+    out, (i, j, ux, uy) = _affine_nearest(moving, r, resolution / rm, a, b, c, d, (n, n))
+    if i.size:
         if ((np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)).any():
             return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
         col, row = np.floor(ux), np.floor(uy)

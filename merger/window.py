@@ -51,7 +51,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .grid import FREE_S, OCCUPIED_S
-from .polar import PROFILE_LEN, _max_pool, _spectra, polar_layout, polar_spectra
+from .polar import PROFILE_LEN, _max_pool, _spectra, polar_layout, polar_spectra, square_crop
 from .similarity import Counts, index_from_counts
 from .sparse import SparseEvaluator, lattice_coords, ncc_from_sums
 from .transform import rotated_roi_fast
@@ -353,21 +353,12 @@ def approximate_window_table(problem, k: int):
     kp = max(1, int(round(k / pool)))  # lattice steps of one pooled cell, covering about ±k
     ts = [(x * pool, y * pool) for y in range(-kp, kp + 1) for x in range(-kp, kp + 1)]
     # the reference's pooled crop about c_ref, wide enough for every shift
-    ref = problem.ref
-    reach = n * res / 2.0 * math.sqrt(2) + 2 * res * pool + kp * pool * res
     cx, cy = problem.center_ref
-    c0 = int(math.floor((cx - reach - ref.origin[0]) / res))
-    r0 = int(math.floor((cy - reach - ref.origin[1]) / res))
-    size = (int(math.ceil(2 * reach / res)) + 2 + pool - 1) // pool * pool
-    crop = np.zeros((size, size), np.uint8)
-    gc0, gc1 = max(c0, 0), min(c0 + size, ref.width)
-    gr0, gr1 = max(r0, 0), min(r0 + size, ref.height)
-    if gc0 < gc1 and gr0 < gr1:
-        crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = ref.states[gr0:gr1, gc0:gc1]
+    crop, (ox, oy) = square_crop(problem.ref, (cx, cy),
+                                 n * res / 2.0 * math.sqrt(2) + 2 * res * pool + kp * pool * res, pool)
     pooled = _max_pool(crop, pool)
     ps = pooled.shape[0]
     pres = res * pool
-    ox, oy = ref.origin[0] + c0 * res, ref.origin[1] + r0 * res  # crop corner (metres)
     ix = np.clip(np.floor((lay.x + (cx - ox)) / pres).astype(np.intp), kp, ps - 1 - kp)
     iy = np.clip(np.floor((lay.y + (cy - oy)) / pres).astype(np.intp), kp, ps - 1 - kp)
     base = np.where(lay.mask, iy * ps + ix, -1)
@@ -568,17 +559,9 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
         return theta0, (float(t0[0]), float(t0[1]))
     # the reference's occupied cells around c_ref, blurred
     cr = np.asarray(problem.center_ref, np.float64)
-    reach = half * math.sqrt(2) + w_m + 4 * res
-    g0 = int(math.floor((cr[0] - reach - ref.origin[0]) / res))
-    h0 = int(math.floor((cr[1] - reach - ref.origin[1]) / res))
-    size = int(math.ceil(2 * reach / res)) + 2
-    crop = np.zeros((size, size), np.float32)
-    gc0, gc1 = max(g0, 0), min(g0 + size, ref.width)
-    gr0, gr1 = max(h0, 0), min(h0 + size, ref.height)
-    if gc0 < gc1 and gr0 < gr1:
-        crop[gr0 - h0:gr1 - h0, gc0 - g0:gc1 - g0] = ref.states[gr0:gr1, gc0:gc1] == OCCUPIED_S
-    field = cv2.GaussianBlur(crop, (0, 0), REFINE_SIGMA_CELLS)
-    org = np.array([ref.origin[0] + g0 * res, ref.origin[1] + h0 * res])
+    crop, org = square_crop(ref, cr, half * math.sqrt(2) + w_m + 4 * res)
+    field = cv2.GaussianBlur((crop == OCCUPIED_S).astype(np.float32), (0, 0), REFINE_SIGMA_CELLS)
+    org = np.asarray(org, np.float64)
 
     def scores(cands):
         """Mean field value at the moving points for each (θ, tx, ty)."""

@@ -385,12 +385,18 @@ def _wait_for(pred, timeout_s, what):
         time.sleep(0.1)
 
 
+def _sigint_default():
+    """In the child: Ctrl-C as a terminal delivers it, even when the test runner was started with SIGINT
+    ignored (nohup, a background job), which Python would otherwise pass on to the child."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_leaves_a_complete_readable_recording(tmp_path):
     rrd, js = tmp_path / "cut.rrd", tmp_path / "cut.json"
     cmd = [sys.executable, "-m", "circsim.cli", "run", "scene1", "--set", "duration_s=60", "--set",
            "merger.method=fast", "--rrd", str(rrd), "--json", str(js), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "RERUN_STRICT": "1"})
+                            env={**os.environ, "RERUN_STRICT": "1"}, preexec_fn=_sigint_default)
     try:
         # wait until merges are being logged (the file grows past the static part), then press Ctrl-C
         _wait_for(lambda: rrd.exists() and rrd.stat().st_size > 300_000 or proc.poll() is not None, 120,
@@ -487,7 +493,7 @@ def test_view_web_serves_on_localhost_until_ctrl_c(fabricated):
     code = (f"import sys; from circsim.record import view; "
             f"sys.exit(view({str(fabricated.path)!r}, web=True, web_port={web}, grpc_port={grpc}))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            text=True)
+                            text=True, preexec_fn=_sigint_default)
     try:
         _wait_for(lambda: _http_ok(f"http://127.0.0.1:{web}/") or proc.poll() is not None, 60, "the web viewer")
         assert proc.poll() is None

@@ -131,9 +131,13 @@ def test_ctrl_c_stops_at_a_tick_boundary_so_every_observer_sees_the_same_events(
             Count.accepted += cycle.result.accepted
             Count.end_t = cycle.t
 
-    before = signal.getsignal(signal.SIGINT)
-    res = Simulation(scene("scene1", "duration_s=20"), [PressCtrlC(), Count()]).run()
-    assert signal.getsignal(signal.SIGINT) is before
+    outer = signal.getsignal(signal.SIGINT)  # a runner started with SIGINT ignored must not decide the test
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        res = Simulation(scene("scene1", "duration_s=20"), [PressCtrlC(), Count()]).run()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, outer)
     assert res.interrupted and res.sim_s == pytest.approx(Count.end_t)
     assert sum(r.accepted for r in res.robots.values()) == Count.accepted > 0
 

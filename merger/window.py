@@ -14,13 +14,14 @@ the thesis's search, bit for bit.
 **The grid answer** (:func:`reference_window_search`, exhaustive, the yardstick): every translation of
 the window in one-cell steps × every coarse angle 0°, 1°, …, 359°; the best (θc, tc) — ties to the
 translation first in :func:`translation_offsets` order (nearest the given center first), then the
-smallest angle; then the thesis's refinement, 0.1° over θc ± 1° at tc (first maximum). That is
-(360 + 20)·… evaluations: (2K+1)²·360 + 21.
+smallest angle; then the thesis's refinement, 0.1° over θc ± 1° at tc (first maximum): (2K+1)²·360 + 21
+evaluations.
 
 **The fast method** (:func:`fast_window_search`) finds that answer with few exact evaluations:
 
 1. *All (θ, t), approximately*: the polar FFT profile of :mod:`merger.polar` about every translation of
-   a coarse lattice (max-pooled cells, 10–20 cm), all 360 angles per translation in one FFT product;
+   a coarse lattice (max-pooled cells of 10–35 cm, at most ±3 lattice steps; rings inside the ROI's
+   inscribed circle), all 360 angles per translation in one FFT product;
 2. *A few (θ, t), exactly*: the best approximate peaks (non-maximum suppressed, plus the best one near
    the half turn, the thesis's typical false alignment) are hill-climbed on the exact coarse grid
    (1° × one cell) with :class:`WindowEvaluator`, which computes the exact counts of one angle for many
@@ -29,8 +30,13 @@ smallest angle; then the thesis's refinement, 0.1° over θc ± 1° at tc (first
 3. *The refinement exactly*, as the reference: 21 angles at tc by :class:`merger.sparse.SparseEvaluator`.
 
 Step 2 starts only from the approximate stage's peaks: it returns the reference's answer when the
-approximation ranks the true best peak among its best few, which :func:`benchmarks/agree_window.py`
-and the property tests check against the reference (it is not exact by construction).
+approximation ranks the true best peak among its best few, which ``benchmarks/agree_window.py``
+and the tests check against the reference. It is not exact by construction: on random-noise grids the
+approximate stage misses the best peak (measured there).
+
+A rotated moving ROI depends only on the moving map, its center and θ: they are kept in a bounded
+cache keyed by the map's content (:func:`_rotated`), shared by the searches of a merge cycle and of
+the next cycles while the map is unchanged.
 
 **Sub-cell refinement** (:func:`refine_alignment`, on by default): the grid answer is refined below the
 grid — θ starts at the middle of a plateau of equal best fine scores, then (θ, t) climb a smooth score

@@ -16,7 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from . import align
-from .mapio import MapFileError, ensure_output_dir, load_map, save_map, save_overlay
+from .mapio import (
+    CENTERS_FILE,
+    MapFileError,
+    centers_yaml,
+    ensure_output_dir,
+    load_map,
+    map_files,
+    overlay_png,
+    write_files,
+)
 from .search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
@@ -192,13 +201,61 @@ def cmd_align(args) -> int:
     return 0 if v.passed else 1
 
 
+def map_names(paths: list[Path]) -> list[str]:
+    """One distinct name per map: its file stem (``Lyon.yaml`` → ``Lyon``), or, when stems repeat (three
+    maps all saved as map_saver's ``map.yaml``), as many trailing path parts as make them distinct
+    (``r1/map``, ``r2/map``). The same file twice is refused."""
+    resolved = [p.resolve() for p in paths]
+    for i, r in enumerate(resolved):
+        if r in resolved[:i]:
+            raise UsageError(f"merge: {paths[i]} is given twice (expected distinct maps)")
+    parts = [p.with_suffix("").parts for p in resolved]
+    for k in range(1, max(map(len, parts)) + 1):
+        names = ["/".join(q[-k:]) for q in parts]
+        if len(set(names)) == len(names):
+            return names
+    raise UsageError("merge: cannot name the maps distinctly")  # pragma: no cover - resolved paths differ
+
+
 def merge_inputs(paths: list[Path], centers: list[str]) -> list[MapInput]:
     if len(paths) < 2:
         raise UsageError("merge: expected at least two maps")
     if len(centers) not in (1, len(paths)):
         raise UsageError(f"--center: expected once or once per map ({len(paths)}), got {len(centers)}")
     cs = [parse_xy(c, "--center") for c in centers] * (len(paths) if len(centers) == 1 else 1)
-    return [MapInput(p.stem, load_map(p), c) for p, c in zip(paths, cs, strict=True)]
+    names = map_names(paths)
+    grids = [load_map(p) for p in paths]
+    check_same_resolution(paths, grids)
+    return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)]
+
+
+def check_same_resolution(paths: list[Path], grids) -> None:
+    """Maps of different cell sizes are refused: resampling would change what ω̃ counts."""
+    r0 = grids[0].resolution
+    for p, g in zip(paths[1:], grids[1:], strict=True):
+        if not math.isclose(g.resolution, r0, rel_tol=1e-6):
+            raise UsageError(f"{p}: resolution {g.resolution:g} m per cell, but {paths[0]} has {r0:g}: expected "
+                             "maps of one resolution (resample one first)")
+
+
+def merge_command(paths, centers, out, params: MergeParams | None = None) -> str:
+    """The ``merger merge`` command line that merges ``paths`` with their ``centers`` (one per map) into
+    ``out``, with the merge options of ``params`` that differ from the defaults."""
+    import shlex
+
+    words = ["merger", "merge", *(str(p) for p in paths)]
+    for x, y in centers:
+        words += ["--center", f"{x:.6f},{y:.6f}"]
+    d = MergeParams()
+    for opt, key in (("--roi", "roi_m"), ("--measure", "measure"), ("--method", "method"),
+                     ("--window", "window_m"), ("--nu-min", "nu_min"), ("--min-support", "min_support")):
+        if params is not None and getattr(params, key) != getattr(d, key):
+            words += [opt, f"{getattr(params, key):g}" if isinstance(getattr(params, key), float)
+                      else str(getattr(params, key))]
+    if params is not None and not params.refine:
+        words.append("--no-refine")
+    words += ["-o", str(out)]
+    return " ".join(shlex.quote(w) for w in words)
 
 
 def report_merge(res, as_json: bool) -> None:
@@ -215,7 +272,9 @@ def report_merge(res, as_json: bool) -> None:
     print(f"merge cycle {res.wall_ms:.0f} ms; {'chosen: ' + '→'.join(res.chosen.order) if res.chosen else 'no verified merge'}")
 
 
-def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]:
+def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
+    """The merged map (OUT.yaml/.pgm) and its overlay (OUT_overlay.png) as {path: bytes}; none when no order
+    passed verification and ``force`` is off."""
     from .superpose import fuse
     from .team import fused_layers
 
@@ -225,10 +284,16 @@ def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]
         layers = fused_layers(maps, res.top.theta_deg, res.top.translation_m)
         merged = type(layers[0])(fuse([g.states for g in layers]), layers[0].resolution, layers[0].origin)
     else:
-        return []
-    y, img = save_map(merged, out)
-    png = save_overlay(layers, [m.name for m in maps], y.with_name(y.stem + "_overlay.png"))
-    return [y, img, png]
+        return {}
+    files = map_files(merged, out)
+    y = next(p for p in files if p.suffix == ".yaml")
+    files[y.with_name(y.stem + "_overlay.png")] = overlay_png(layers, [m.name for m in maps])
+    return files
+
+
+def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]:
+    """Write :func:`merge_files`, all or none."""
+    return write_files(merge_files(res, maps, out, force))
 
 
 def cmd_merge(args) -> int:
@@ -285,11 +350,11 @@ def cmd_demo(args) -> int:
         raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
     out = args.output
     ensure_output_dir(out, "-o")
-    poses, views = [], []
+    poses, views, files = [], [], {}
     for name, a in zip(names, starts, strict=True):
         pose = robot_pose_on_circle(a, radius, center, yaw_offset_deg=rng.uniform(-40, 40))
         grid, c = view(pose, a)
-        save_map(grid, out / f"{name}.yaml")
+        files.update(map_files(grid, out / f"{name}.yaml"))
         views.append((grid, c))
         poses.append(pose)
     # the centers the merger is given: exact, or off by e_k (own generator: the views stay the seed's views)
@@ -300,7 +365,15 @@ def cmd_demo(args) -> int:
     truth_t = {n: tuple(rotation(truth[n]) @ e - errs[0]) for n, e in zip(names, errs, strict=True)}
     res = merge_team(maps, params)
     report_merge(res, args.json)
-    written = write_merge(res, maps, out / "merged", force=False)
+    command = merge_command([out / f"{n}.yaml" for n in names], [m.center for m in maps], out / "remerged",
+                            params)
+    entries = {n: {"map": f"{n}.yaml", "center": list(m.center), "center_true": [float(c[0]), float(c[1])],
+                   "pose_world": [float(p[0]), float(p[1]), math.degrees(p[2]) % 360]}
+               for n, m, (_, c), p in zip(names, maps, views, poses, strict=True)}
+    files[out / CENTERS_FILE] = centers_yaml(entries, {n: (truth[n], truth_t[n]) for n in names}, command,
+                                             note=f"merger demo: views of {source}, seed {args.seed}")
+    files.update(merge_files(res, maps, out / "merged", force=False))
+    written = [p for p in write_files(files) if p.parent == out and p.stem.startswith("merged")]
     if not args.json:
         print(f"views of {source}")
         print("ground truth: " + ", ".join(f"{n} {truth[n]:.1f}° {_xy(truth_t[n])} m" for n in names[1:])
@@ -312,7 +385,9 @@ def cmd_demo(args) -> int:
         print(f"angle errors{tag}: " + ", ".join(f"{n} {a_err[n]:.2f}°" for n in names[1:]))
         t_err = {n: math.dist(res.top.translation(n), truth_t[n]) for n in names[1:]}
         print(f"translation errors{tag}: " + ", ".join(f"{n} {t_err[n]:.3f} m" for n in names[1:]))
-        print(f"wrote the three local maps and {', '.join(map(str, written)) or 'no merged map'} under {out}")
+        print(f"wrote the three local maps, {out / CENTERS_FILE} (centers and ground truth) and "
+              f"{', '.join(map(str, written)) or 'no merged map'}")
+        print(f"re-merge them: {command}")
     return 0 if res.accepted else 1
 
 

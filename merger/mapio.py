@@ -6,12 +6,21 @@ Reading follows map_server: ``p = (255 − pixel)/255`` (``pixel/255`` with ``ne
 itself (0..100, anything else unknown). The image's top row is the max-y row (flipped into the ROS
 grid order). Writing follows map_saver: P5 PGM with free 254, occupied 0, unknown 205.
 
-Every problem with a file raises :class:`MapFileError` naming the file and the key.
+Every problem with a file raises :class:`MapFileError` naming the file and the key. Numbers may be
+written as YAML 1.2 allows (``5e-2`` as well as ``0.05``). A PGM written by map_saver states its
+resolution in a comment (``# CREATOR: map_saver.cpp 0.050 m/pix``): a YAML that says otherwise is refused.
+
+Files are written atomically (a temporary file in the same folder, then :func:`os.replace`); the files
+of one output (a map's YAML and image, a merge's map and overlay) appear all or none
+(:func:`write_files`).
 """
 
 from __future__ import annotations
 
 import math
+import os
+import re
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -23,10 +32,29 @@ from .overlay import overlay_rgb
 
 PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
 MODES = ("trinary", "scale", "raw")
+MAX_ORIGIN_M = 1e6  # a map origin a thousand kilometres away is a typo
+_PGM_RESOLUTION = re.compile(rb"#[^\n]*?([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*m/pix")
 
 
 class MapFileError(ValueError):
     """A map file that cannot be read as a ROS map_server map (message: ``file: problem``)."""
+
+
+class Yaml12Loader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 floats: ``1e1``, ``5E-2``, ``.5e3`` are numbers (YAML 1.1,
+    PyYAML's default, reads an exponent without a dot as a string)."""
+
+
+Yaml12Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"""),
+    list("-+0123456789."))
+
+
+def load_yaml(text: str):
+    """YAML text parsed safely with YAML 1.2 floats (:class:`Yaml12Loader`)."""
+    return yaml.load(text, Loader=Yaml12Loader)  # noqa: S506 - a SafeLoader subclass
 
 
 def _number(meta: dict, key: str, path: Path, default=None, *, lo=None, hi=None) -> float:
@@ -50,17 +78,21 @@ def read_metadata(path) -> dict:
     except OSError as e:
         raise MapFileError(f"{path}: cannot read: {e.strerror or e}") from None
     try:
-        meta = yaml.safe_load(text)
+        meta = load_yaml(text)
     except yaml.YAMLError as e:
         raise MapFileError(f"{path}: not valid YAML: {str(e).splitlines()[0]}") from None
+    except (ValueError, TypeError, RecursionError) as e:  # e.g. a date 2001-13-01, nesting too deep
+        raise MapFileError(f"{path}: not valid YAML: {type(e).__name__}: {e}") from None
     if not isinstance(meta, dict):
         raise MapFileError(f"{path}: expected a YAML mapping with keys image, resolution, origin")
     if not isinstance(meta.get("image"), str) or not meta["image"]:
         raise MapFileError(f"{path}: key 'image': expected the image file name, got {meta.get('image')!r}")
     origin = meta.get("origin")
     if (not isinstance(origin, list) or len(origin) not in (2, 3)
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)):
-        raise MapFileError(f"{path}: key 'origin': expected [x, y, yaw], got {origin!r}")
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                       and abs(v) <= MAX_ORIGIN_M for v in origin)):
+        raise MapFileError(f"{path}: key 'origin': expected [x, y, yaw] of finite numbers (|x|, |y| at most "
+                           f"{MAX_ORIGIN_M:g} m), got {origin!r}")
     if len(origin) == 3 and abs(origin[2]) > 1e-9:
         raise MapFileError(f"{path}: key 'origin': a rotated origin (yaw {origin[2]}) is not supported")
     mode = meta.get("mode", "trinary")
@@ -102,11 +134,40 @@ def read_image(path: Path, yaml_path: Path) -> np.ndarray:
     return np.asarray(img, np.float64)
 
 
+def pgm_resolution(path: Path) -> float | None:
+    """The resolution a map_saver PGM states in its header comment (``0.050 m/pix``), if any."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(512)
+    except OSError:
+        return None
+    if not head.startswith((b"P5", b"P2")):
+        return None
+    m = _PGM_RESOLUTION.search(head)
+    try:
+        return float(m.group(1)) if m else None
+    except ValueError:
+        return None
+
+
+def check_image_resolution(meta: dict, img_path: Path, yaml_path: Path) -> None:
+    """A YAML resolution that contradicts its PGM's own statement is a wrong map, not a scale (map_saver
+    prints 3 decimals: a difference under 0.0005 m is rounding)."""
+    stated = pgm_resolution(img_path)
+    if stated is not None and stated > 0 and not math.isclose(stated, meta["resolution"], rel_tol=1e-3, abs_tol=5e-4):
+        raise MapFileError(f"{yaml_path}: key 'resolution': {meta['resolution']:g} m per cell, but its image "
+                           f"{img_path.name} was saved at {stated:g} m/pix (header comment); correct the YAML")
+
+
 def load_map(path) -> OccupancyGrid:
     """Read a map_server YAML and its image into an :class:`OccupancyGrid` (ROS row order)."""
     path = Path(path)
     meta = read_metadata(path)
-    pixels = np.flipud(read_image(path.parent / meta["image"], path))
+    img_path = path.parent / meta["image"]
+    pixels = np.flipud(read_image(img_path, path))
+    check_image_resolution(meta, img_path, path)
+    if pixels.size == 0:
+        raise MapFileError(f"{img_path}: an empty image (0 cells)")
     if meta["mode"] == "raw":
         raw = np.rint(pixels).astype(np.int16)
         data = np.where(raw <= 100, raw, -1)
@@ -132,32 +193,115 @@ def ensure_output_dir(path, option: str) -> None:
         raise MapFileError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
 
 
-def save_map(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> tuple[Path, Path]:
-    """Write ``grid`` as map_saver does: ``<stem>.yaml`` and ``<stem>.pgm`` (free 254, occupied 0,
-    unknown 205). ``path`` may name the YAML or the stem. Returns (yaml path, image path)."""
+CENTERS_FILE = "centers.yaml"
+
+
+def centers_yaml(maps: dict[str, dict], truth: dict[str, tuple] | None, command: str, note: str = "") -> bytes:
+    """The ``centers.yaml`` written beside simulated or demo maps (``merger demo``, ``circsim run
+    --save-maps``): for each map its file, the common center in its frame as given to the merger
+    (``center``) and exact (``center_true``), the robot's start pose in the world (x, y, yaw in degrees);
+    the ground truth of each map onto the first (``theta_deg``, ``translation_m``: x_first = c_first + t +
+    R(θ)(x − c), with the given centers); and the ``merger merge`` command that merges the maps."""
+    first = next(iter(maps))
+    doc = {"note": note, "maps": maps}
+    if truth is not None:
+        doc["truth_onto"] = first
+        doc["truth"] = {n: {"theta_deg": round(float(th), 6), "translation_m": [round(float(v), 6) for v in t]}
+                        for n, (th, t) in truth.items()}
+    doc["merge_command"] = command
+    return yaml.safe_dump(_plain(doc), default_flow_style=None, sort_keys=False, allow_unicode=True,
+                          width=4096).encode()
+
+
+def _plain(v):
+    """numpy scalars and tuples as plain YAML numbers and lists."""
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_files(files: dict) -> list[Path]:
+    """Write ``{path: bytes}`` all or none: every file goes to a temporary name in its folder first, and
+    only when all are written are they renamed (:func:`os.replace`) into place. A failure removes the
+    temporary files and raises :class:`MapFileError` naming the file; a reader never sees half a file."""
+    for path in files:
+        if Path(path).is_dir():
+            raise MapFileError(f"{path}: cannot write: a folder has that name")
+    temps: list[tuple[str, Path]] = []
+    placed: list[Path] = []
+    try:
+        for path, data in files.items():
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+            temps.append((tmp, path))
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would make the map private
+        for tmp, path in temps:
+            os.replace(tmp, path)
+            placed.append(path)
+    except OSError as e:
+        for p in placed:  # a rename failed after others: take those back (none or all)
+            p.unlink(missing_ok=True)
+        for tmp, _ in temps:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        raise MapFileError(f"{e.filename or path}: cannot write ({e.strerror or e})") from None
+    return [p for _, p in temps]
+
+
+def map_files(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> dict[Path, bytes]:
+    """The files of ``grid`` as map_saver writes them: ``{<stem>.yaml: ..., <stem>.pgm: ...}`` (free 254,
+    occupied 0, unknown 205). ``path`` may name the YAML or the stem."""
     path = Path(path)
     stem = path.with_suffix("") if path.suffix in (".yaml", ".yml", ".pgm") else path
     yaml_path, img_path = stem.with_suffix(".yaml"), stem.with_suffix(image_suffix)
     lut = np.array([PGM_UNKNOWN, PGM_FREE, PGM_OCCUPIED], np.uint8)
     img = np.flipud(lut[grid.states])
-    yaml_path.parent.mkdir(parents=True, exist_ok=True)
     if image_suffix == ".pgm":
-        header = f"P5\n# CREATOR: merger {grid.resolution:.3f} m/pix\n{grid.width} {grid.height}\n255\n"
-        img_path.write_bytes(header.encode("ascii") + np.ascontiguousarray(img).tobytes())
-    elif not cv2.imwrite(str(img_path), img):
-        raise MapFileError(f"{img_path}: cannot write image")
+        header = f"P5\n# CREATOR: merger {grid.resolution:.6g} m/pix\n{grid.width} {grid.height}\n255\n"
+        data = header.encode("ascii") + np.ascontiguousarray(img).tobytes()
+    else:
+        ok, buf = cv2.imencode(image_suffix, img)
+        if not ok:
+            raise MapFileError(f"{img_path}: cannot encode the image as {image_suffix}")
+        data = buf.tobytes()
     meta = {"image": img_path.name, "resolution": float(grid.resolution),
             "origin": [float(grid.origin[0]), float(grid.origin[1]), 0.0], "negate": 0,
             "occupied_thresh": 0.65, "free_thresh": 0.196, "mode": "trinary"}
-    yaml_path.write_text(yaml.safe_dump(meta, default_flow_style=None, sort_keys=False))
+    return {img_path: data,
+            yaml_path: yaml.safe_dump(meta, default_flow_style=None, sort_keys=False).encode()}
+
+
+def save_map(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> tuple[Path, Path]:
+    """Write ``grid`` as map_saver does (see :func:`map_files`), both files or none. Returns (yaml path,
+    image path)."""
+    img_path, yaml_path = write_files(map_files(grid, path, image_suffix=image_suffix))
     return yaml_path, img_path
+
+
+def overlay_png(layers: list[OccupancyGrid], names: list[str]) -> bytes:
+    """The thesis-style colour overlay (see :func:`merger.overlay.overlay_rgb`) encoded as PNG."""
+    rgb = overlay_rgb([g.states for g in layers], names)
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(np.flipud(rgb)), cv2.COLOR_RGB2BGR))
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image as PNG
+        raise MapFileError("cannot encode the overlay as PNG")
+    return buf.tobytes()
 
 
 def save_overlay(layers: list[OccupancyGrid], names: list[str], path) -> Path:
     """Write the thesis-style colour overlay (see :func:`merger.overlay.overlay_rgb`) as a PNG."""
-    rgb = overlay_rgb([g.states for g in layers], names)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(np.flipud(rgb), cv2.COLOR_RGB2BGR)):
-        raise MapFileError(f"{path}: cannot write PNG")
-    return path
+    return write_files({Path(path): overlay_png(layers, names)})[0]

@@ -65,6 +65,11 @@ def test_real_turtlebot3_map():
     ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0.5]\n", "origin"),
     ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "image"),
     ("image: [unclosed\n", "YAML"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [.inf, 0, 0]\n", "origin"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [.nan, 0, 0]\n", "origin"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, -.inf, 0]\n", "origin"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [1e300, 0, 0]\n", "origin"),
+    ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nwhen: 2001-13-01\n", "YAML"),
 ])
 def test_bad_files_name_file_and_key(tmp_path, text, key):
     write_pgm(tmp_path / "m.pgm", np.zeros((2, 2)))
@@ -85,3 +90,58 @@ def test_overlay_png_colours(tmp_path):
     assert rgb[0, 0].tolist() == [200, 0, 200]  # Lyon occupied: magenta
     assert rgb[0, 1].tolist() == [170, 235, 170]  # Lyon free: light green
     assert rgb[0, 2].tolist() == [128, 128, 128]  # unknown to all: grey
+
+
+def test_yaml_1_2_exponent_numbers(tmp_path):
+    """``5e-2`` is a number (YAML 1.1, PyYAML's default, would read a string and refuse the map)."""
+    write_pgm(tmp_path / "m.pgm", np.zeros((2, 3)))
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 5e-2\norigin: [-1e1, 2E0, 0]\n")
+    g = load_map(tmp_path / "m.yaml")
+    assert g.resolution == 0.05 and g.origin == (-10.0, 2.0)
+
+
+def test_resolution_contradicting_the_pgm_header_is_refused(tmp_path):
+    """map_saver states the resolution in the PGM's comment: a YAML saying 0.1 for a 0.05 m image is a
+    wrong map (merged as is, it would be twice its size)."""
+    g = OccupancyGrid(np.zeros((4, 5), np.uint8), 0.05, (0.0, 0.0))
+    y, img = save_map(g, tmp_path / "m.yaml")
+    assert b"0.05 m/pix" in img.read_bytes()[:64]
+    y.write_text(y.read_text().replace("resolution: 0.05", "resolution: 0.1"))
+    with pytest.raises(MapFileError, match=r"m.yaml: key 'resolution': 0.1 m per cell, but its image m.pgm was "
+                                           r"saved at 0.05 m/pix"):
+        load_map(y)
+    # map_saver's own header, 3 decimals: 0.050 for a YAML 0.05 is the same resolution
+    img.write_bytes(img.read_bytes().replace(b"# CREATOR: merger 0.05 m/pix", b"# CREATOR: map_saver.cpp 0.050 m/pix"))
+    y.write_text(y.read_text().replace("resolution: 0.1", "resolution: 0.05"))
+    assert load_map(y).resolution == 0.05
+    write_pgm(tmp_path / "plain.pgm", np.zeros((2, 2)))  # no comment: nothing to compare
+    (tmp_path / "plain.yaml").write_text("image: plain.pgm\nresolution: 0.3\norigin: [0, 0, 0]\n")
+    assert load_map(tmp_path / "plain.yaml").resolution == 0.3
+
+
+def test_small_resolutions_round_trip(tmp_path):
+    g = OccupancyGrid(np.zeros((3, 3), np.uint8), 0.0125, (0.0, 0.0))
+    assert load_map(save_map(g, tmp_path / "fine")[0]).resolution == 0.0125
+
+
+def test_written_files_are_readable_by_others_and_leave_no_temporary(tmp_path):
+    import os
+
+    g = OccupancyGrid(np.zeros((3, 3), np.uint8), 0.05, (0.0, 0.0))
+    y, img = save_map(g, tmp_path / "m")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (y.stat().st_mode & 0o777) == (0o666 & ~umask)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
+
+
+def test_write_files_all_or_none(tmp_path):
+    """A file that cannot be written leaves none of the others (and no temporary file) behind."""
+    from merger.mapio import write_files
+
+    (tmp_path / "blocker").write_text("a file where a folder is needed")
+    with pytest.raises(MapFileError, match="blocker"):
+        write_files({tmp_path / "a.yaml": b"a", tmp_path / "blocker" / "b.png": b"b"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]
+    assert write_files({tmp_path / "a.yaml": b"a"}) == [tmp_path / "a.yaml"]
+    assert (tmp_path / "a.yaml").read_bytes() == b"a"

@@ -281,3 +281,72 @@ def test_demo_real_map_negative_center(tmp_path, capsys):
     assert rc == 0, text
     m = re.search(r"\(center ([-\d.]+),([-\d.]+),", text)
     assert abs(float(m.group(1)) + 1.825) < 0.01 and abs(float(m.group(2)) + 2.825) < 0.01
+
+
+# --- issue 12: names, resolutions, all-or-none outputs, demo's centers ---------------------------------
+def test_maps_saved_under_one_name_are_named_by_folder(saved, tmp_path, capsys):
+    """Three maps saved as map_saver's default ``map.yaml`` in r1/, r2/, r3/ keep three names."""
+    d, paths, centers, _ = saved
+    copies = []
+    for i, p in enumerate(paths):
+        g = load_map(p)
+        copies.append(save_map(g, tmp_path / f"r{i + 1}" / "map.yaml")[0])
+    args = ["merge", *map(str, copies), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m"),
+            "--json"]
+    assert main(args) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert set(res["chosen"]["order"]) == {"r1/map", "r2/map", "r3/map"}
+
+
+def test_the_same_map_twice_is_refused(saved, tmp_path, capsys):
+    d, paths, centers, _ = saved
+    assert main(["merge", str(paths[0]), str(paths[0]), "--center", centers[0], "-o", str(tmp_path / "m")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "given twice" in err and str(paths[0]) in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_maps_of_different_resolutions_are_refused(saved, tmp_path, capsys):
+    d, paths, centers, _ = saved
+    g = load_map(paths[1])
+    coarse = save_map(type(g)(g.states[::2, ::2].copy(), 2 * g.resolution, g.origin), tmp_path / "coarse.yaml")[0]
+    out = tmp_path / "out"
+    assert main(["merge", str(paths[0]), str(coarse), "--center", centers[0], "-o", str(out / "m")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "coarse.yaml: resolution 0.1" in err and "expected maps of one resolution" in err
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_merge_outputs_all_or_none(saved, tmp_path, capsys):
+    """The overlay cannot be written (a folder holds its name): neither are OUT.yaml and OUT.pgm."""
+    d, paths, centers, _ = saved
+    (tmp_path / "m_overlay.png").mkdir()
+    args = ["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "m_overlay.png" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m_overlay.png"]
+
+
+def test_demo_writes_centers_and_the_command_that_re_merges(tmp_path, capsys):
+    import shlex
+
+    import yaml
+
+    assert main(["demo", "-o", str(tmp_path / "d"), "--center-error", "0.1", "--window", "0.3"]) == 0
+    out = capsys.readouterr().out
+    doc = yaml.safe_load((tmp_path / "d" / "centers.yaml").read_text())
+    assert list(doc["maps"]) == ["Lyon", "Auckland", "Nevers"] and doc["truth_onto"] == "Lyon"
+    for m in doc["maps"].values():
+        assert (tmp_path / "d" / m["map"]).exists()
+        assert 0 < math.dist(m["center"], m["center_true"]) <= 0.1 * math.sqrt(2) + 1e-9
+    command = doc["merge_command"]
+    assert f"re-merge them: {command}" in out and "--window 0.3" in command
+    argv = shlex.split(command)
+    assert argv[:2] == ["merger", "merge"]
+    assert main([*argv[1:], "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    for n, t in doc["truth"].items():  # the re-merge finds the ground truth the file states
+        assert abs(angle_diff_deg(res["chosen"]["theta_deg"][n], t["theta_deg"])) <= 0.5
+        assert math.dist(res["chosen"]["translation_m"][n], t["translation_m"]) <= 0.05
+    assert (tmp_path / "d" / "remerged.yaml").exists() and (tmp_path / "d" / "remerged_overlay.png").exists()

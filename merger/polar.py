@@ -18,14 +18,13 @@ what a 1° profile needs. The result ranks the angles well but is not the exact 
 from __future__ import annotations
 
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
 
+from .cache import BoundedCache, array_digest
 from .grid import FREE_S, OCCUPIED_S, OccupancyGrid
 
 PROFILE_LEN = 360  # 1° steps
@@ -139,10 +138,16 @@ def _max_pool(crop: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
-_CACHE: OrderedDict = OrderedDict()
-_INDEX: dict = {}  # sample indices by layout and crop geometry (:func:`_sample_index`)
-_CACHE_SIZE = 12
-_LOCK = threading.Lock()
+# Spectra of the maps of recent merge cycles, keyed by layout, crop geometry and the crop's content
+# digest: a map unchanged since the previous cycle (or shared by teammates) is not transformed again,
+# and a changed one never meets stale spectra. Bounded (an entry is ~0.3 MB for an 8 m ROI at 5 cm):
+# a long run publishes a new map every period and must not keep them all.
+SPECTRA_ENTRIES = 64
+SPECTRA_BYTES = 32 * 2**20
+INDEX_ENTRIES = 32  # sample indices by layout and crop geometry (:func:`_sample_index`)
+INDEX_BYTES = 32 * 2**20
+_CACHE = BoundedCache(SPECTRA_ENTRIES, SPECTRA_BYTES)
+_INDEX = BoundedCache(INDEX_ENTRIES, INDEX_BYTES)
 
 
 def clear_cache() -> None:
@@ -150,9 +155,8 @@ def clear_cache() -> None:
     (benchmarks use this to time cold merge cycles)."""
     from .window import clear_rotation_cache
 
-    with _LOCK:
-        _CACHE.clear()
-        _INDEX.clear()
+    _CACHE.clear()
+    _INDEX.clear()
     clear_rotation_cache()
 
 
@@ -161,9 +165,9 @@ def _sample_index(lay: PolarLayout, offset, shape, res: float) -> np.ndarray:
     outside the ROI's square), for a crop whose corner is ``offset`` (metres) from the center. The maps
     of a merge cycle share few lattices (a superposition has its first map's), so it is cached."""
     key = (lay.n, lay.res, lay.pool, lay.weight.size, offset[0], offset[1], shape, res)
-    with _LOCK:
-        if key in _INDEX:
-            return _INDEX[key]
+    hit = _INDEX.get(key)
+    if hit is not None:
+        return hit
     inv = np.float32(1.0 / (res * lay.pool))
     ix = (lay.x * inv + np.float32(offset[0] * inv)).astype(np.intp)  # nearest: the pooled
     iy = (lay.y * inv + np.float32(offset[1] * inv)).astype(np.intp)  # cell holding the sample
@@ -172,40 +176,35 @@ def _sample_index(lay: PolarLayout, offset, shape, res: float) -> np.ndarray:
     iy *= shape[1]
     iy += ix
     iy[~lay.mask] = shape[0] * shape[1]
-    with _LOCK:
-        _INDEX[key] = iy
-        while len(_INDEX) > _CACHE_SIZE:
-            _INDEX.pop(next(iter(_INDEX)))
+    iy.setflags(write=False)
+    _INDEX.put(key, iy)
     return iy
 
 
 def polar_spectra(grid: OccupancyGrid, center, lay: PolarLayout) -> np.ndarray:
     """(2, rings, 181) spectra of the occupied and free indicators of ``grid`` around ``center``.
 
-    A map is used several times in a merge cycle (as reference and as moving map); spectra are kept in
-    a small cache keyed by the cropped cells themselves, so a changed grid is never served stale spectra.
+    A map is used several times in a merge cycle (as reference and as moving map) and in the next
+    cycles while it is unchanged; spectra are kept in a bounded cache keyed by the cropped cells'
+    digest (:func:`merger.cache.array_digest`), so a changed grid is never served stale spectra.
     """
     crop, org = _crop(grid, center, lay)
-    key = (lay.n, lay.res, lay.pool, lay.weight.size, float(center[0] - org[0]), float(center[1] - org[1]),
-           grid.resolution, crop.shape)
-    with _LOCK:
-        for img, spec in _CACHE.get(key, ()):
-            if np.array_equal(img, crop):
-                _CACHE.move_to_end(key)
-                return spec
+    geo = (lay.n, lay.res, lay.pool, lay.weight.size, float(center[0] - org[0]), float(center[1] - org[1]),
+           grid.resolution)
+    key = geo + (array_digest(crop),)
+    spec = _CACHE.get(key)
+    if spec is not None:
+        return spec
     pooled = _max_pool(crop, lay.pool)
     flat = np.zeros(pooled.size + 1, np.uint8)  # and one unknown cell for the samples outside the ROI
     flat[:-1] = pooled.reshape(-1)
-    s = flat.take(_sample_index(lay, key[4:6], pooled.shape, grid.resolution))
+    s = flat.take(_sample_index(lay, geo[4:6], pooled.shape, grid.resolution))
     values = np.empty((2, s.size), np.float32)
     np.equal(s, OCCUPIED_S, out=values[0])
     np.equal(s, FREE_S, out=values[1])
     spec = _spectra(lay, values)
-    with _LOCK:
-        _CACHE.setdefault(key, []).append((crop, spec))
-        _CACHE.move_to_end(key)
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
+    spec.setflags(write=False)
+    _CACHE.put(key, spec)
     return spec
 
 

@@ -5,7 +5,12 @@ SLAM, the center error, the network, the merger parameters and the outputs. Ever
 defaults, so a scenario can be short (see ``circsim/scenarios/scene1.yaml``). Validation happens here,
 at the boundary: an unknown key, a wrong type or an out-of-range value raises :class:`ScenarioError`
 with one line naming the file, the key path and what was expected, e.g.
-``scene1.yaml: robots.speed_mps: expected a number > 0, got 'fast'``.
+``scene1.yaml: robots.speed_mps: expected a number > 0, got 'fast'``. Numbers follow YAML 1.2 (``1e1``
+is ten). Beyond types, the loader refuses what would run but could not mean anything: an empty file;
+a room that does not hold the center, the robots' circle (plus their bodies), a pillar or an object; a
+pillar or object on a robot's start; sizes that would not fit in memory or take hours (a grid above
+:data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
+``merger.cli.MAX_ROI_M``). A room given as ``walls`` (which need not close) has no inside to check.
 """
 
 from __future__ import annotations
@@ -19,6 +24,8 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
+from merger.cli import MAX_ROI_M
+from merger.mapio import load_yaml
 from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
@@ -42,6 +49,9 @@ from .validate import (
 )
 
 Vec2 = tuple[float, float]
+MAX_GRID_CELLS = 4000  # cells on a side of a robot's grid (200 m at 5 cm): 64 MB of log-odds per robot
+MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
+MAX_BEAMS = 100_000
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 
@@ -213,8 +223,8 @@ class Scenario:
             if not sep or not key:
                 raise ScenarioError(f"{self.source}: --set {a!r}: expected key.path=value")
             try:
-                value = yaml.safe_load(text)
-            except yaml.YAMLError:
+                value = load_yaml(text)
+            except (yaml.YAMLError, ValueError, TypeError, RecursionError):
                 raise ScenarioError(f"{self.source}: --set {a}: value is not valid YAML") from None
             _assign(data, key.split("."), value, f"{self.source}: --set {a}")
             pairs.append((key, a))
@@ -232,14 +242,23 @@ def load_scenario(path) -> Scenario:
     path = Path(path)
     label = path.name
     try:
-        data = yaml.safe_load(path.read_text())
+        data = load_yaml(path.read_text())
     except OSError as e:
-        raise ScenarioError(f"{label}: cannot read file ({e.strerror})") from None
+        raise ScenarioError(f"{label}: cannot read file ({e.strerror or e})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{label}: not a text file (expected a YAML scenario)") from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ScenarioError(f"{label}: invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
-    return scenario_from_dict({} if data is None else data, source=label, default_name=path.stem)
+        problem = str(getattr(e, "problem", None) or e).splitlines()[0]
+        raise ScenarioError(f"{label}: invalid YAML{where}: {problem}") from None
+    except (ValueError, TypeError, RecursionError) as e:  # e.g. a date 2001-13-01, nesting too deep
+        raise ScenarioError(f"{label}: invalid YAML: {type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}") \
+            from None
+    if data is None:  # an empty or comment-only file would silently run the default scene
+        raise ScenarioError(f"{label}: empty scenario (expected a mapping of scenario sections: "
+                            f"{', '.join(_TOP)})")
+    return scenario_from_dict(data, source=label, default_name=path.stem)
 
 
 def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenario") -> Scenario:
@@ -293,7 +312,8 @@ _ROBOTS = {"names": seq(string, "a list of robot names", 1), "radius_m": _POS,
            "motion": choice("online", "offline"),
            "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": _POS}),
            "body_radius_m": _POS}
-_LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2), "range_max_m": _POS,
+_LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
+                               "range_max_m": _POS,
                                "range_min_m": _NONNEG, "rate_hz": _POS, "noise_std_m": _NONNEG,
                                "dropout": number(ge=0, lt=1)})
 _SLAM = section(SlamConfig, {
@@ -304,7 +324,7 @@ _SLAM = section(SlamConfig, {
 _NETWORK = section(NetworkConfig, {"period_s": _POS, "latency_s": _NONNEG, "jitter_s": _NONNEG,
                                    "loss": number(ge=0, lt=1)})
 _MERGER = section(MergerSettings, {
-    "roi_m": _POS, "measure": choice("similarity", "birk_carpin", "ncc"),
+    "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
@@ -333,22 +353,78 @@ def _build(data, source: str) -> Scenario:
     if slam.size_m <= 4 * robots.radius_m:  # the map is centred on the start pose, on the circle
         raise bad("slam.size_m", f"a number > 4 * robots.radius_m ({4 * robots.radius_m:g}) so that the "
                   "robot's circle fits in its map", slam.size_m)
+    cells = slam.size_m / slam.resolution_m
+    if cells > MAX_GRID_CELLS:
+        raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
+                  f"slam.resolution_m = {cells:.0f})", slam.size_m)
     merger = _MERGER(data.get("merger"), "merger")
     top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
     if merger.window_m > top + 1e-12:
         raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
                   f"{merger.roi_m:g} m)", merger.window_m)
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
+    duration_s = _POS(data.get("duration_s", one_tour), "duration_s")
+    dt_s = _POS(data.get("dt_s", 0.1), "dt_s")
+    if duration_s / dt_s > MAX_TICKS:
+        raise bad("duration_s", f"at most {MAX_TICKS} ticks of dt_s ({dt_s:g} s): a number <= "
+                  f"{MAX_TICKS * dt_s:g}", duration_s)
+    world = _world(data.get("world"))
+    check_geometry(world, robots)
     return Scenario(
         name=string(data.get("name", "scenario"), "name"),
         description=string(data.get("description", ""), "description"),
         seed=integer(ge=0)(data.get("seed", 0), "seed"),
-        duration_s=_POS(data.get("duration_s", one_tour), "duration_s"),
-        dt_s=_POS(data.get("dt_s", 0.1), "dt_s"),
-        world=_world(data.get("world")), robots=robots, laser=laser, slam=slam,
+        duration_s=duration_s, dt_s=dt_s, world=world, robots=robots, laser=laser, slam=slam,
         center_error=_center_error(data.get("center_error"), robots.names),
         network=_NETWORK(data.get("network"), "network"), merger=merger,
         output=_OUTPUT(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
+
+
+def _object_reach(o) -> float:
+    """Radius of a circle about the object's center that holds it."""
+    if isinstance(o, Chair):
+        return o.leg_spacing_m / math.sqrt(2) + o.leg_radius_m
+    if isinstance(o, Box):
+        return math.hypot(*o.size_m) / 2
+    return math.hypot(o.seat_m, o.back_m) / 2  # an overturned chair: an L centred on its bounding box
+
+
+def check_geometry(world: WorldSpec, robots: RobotsSpec) -> None:
+    """The scene must make sense: a rectangular room holds the center, the robots' circle with their
+    bodies, every pillar and object; nothing stands on a robot's start. (Such a scene would run and report
+    "no merge".)"""
+    if world.room.size_m is not None:
+        (rx, ry), (w, h) = world.room.center or (0.0, 0.0), world.room.size_m
+        x0, y0, x1, y1 = rx - w / 2, ry - h / 2, rx + w / 2, ry + h / 2
+        span = f"the room spans x [{x0:g}, {x1:g}], y [{y0:g}, {y1:g}]"
+    else:  # walls need not close a room: no inside to check
+        x0 = y0 = -math.inf
+        x1 = y1 = math.inf
+        span = ""
+
+    def inside(c, r):
+        return x0 + r < c[0] < x1 - r and y0 + r < c[1] < y1 - r
+
+    cx, cy = world.center
+    if not inside(world.center, 0.0):
+        raise bad("world.center", f"a point inside the room ({span})", list(world.center))
+    reach = robots.radius_m + robots.body_radius_m
+    if not inside(world.center, reach):
+        raise bad("robots.radius_m", f"a circle about world.center ({cx:g}, {cy:g}) that, with "
+                  f"robots.body_radius_m {robots.body_radius_m:g}, stays inside the room ({span})",
+                  robots.radius_m)
+    starts = {n: (cx + robots.radius_m * math.cos(math.radians(a)), cy + robots.radius_m * math.sin(math.radians(a)))
+              for n, a in zip(robots.names, robots.start_angles_deg, strict=True)}
+    things = [(f"world.pillars[{i}]", p.center, p.radius) for i, p in enumerate(world.pillars)]
+    things += [(f"world.objects[{i}]", o.center, _object_reach(o)) for i, o in enumerate(world.objects)]
+    for path, c, r in things:
+        if not inside(c, r):
+            raise Invalid(path, f"expected inside the room ({span}), got center {list(c)} reaching {r:.2f} m")
+        for n, s in starts.items():
+            if math.dist(c, s) < r + robots.body_radius_m:
+                raise Invalid(path, f"expected clear of robot {n}'s start ({s[0]:.2f}, {s[1]:.2f}) "
+                                    f"(body radius {robots.body_radius_m:g} m), got center {list(c)}, "
+                                    f"reaching {r:.2f} m")
 
 
 def _world(v) -> WorldSpec:

@@ -25,8 +25,8 @@ def bad(path: str, expected: str, v) -> Invalid:
 
 def number(gt=None, ge=None, lt=None, le=None):
     """A finite int or float (not a bool) within the given bounds, returned as float."""
-    low = ("(", gt) if gt is not None else ("[", ge) if ge is not None else None
-    high = (lt, ")") if lt is not None else (le, "]") if le is not None else None
+    low = ("(", f"{gt:g}") if gt is not None else ("[", f"{ge:g}") if ge is not None else None
+    high = (f"{lt:g}", ")") if lt is not None else (f"{le:g}", "]") if le is not None else None
     if low and high:
         bounds = f" in {low[0]}{low[1]}, {high[0]}{high[1]}"
     elif low:
@@ -46,11 +46,13 @@ def number(gt=None, ge=None, lt=None, le=None):
     return check
 
 
-def integer(ge=None):
-    exp = "an integer" + (f" >= {ge}" if ge is not None else "")
+def integer(ge=None, le=None):
+    exp = "an integer" + (f" in [{ge}, {le}]" if ge is not None and le is not None else
+                          f" >= {ge}" if ge is not None else f" <= {le}" if le is not None else "")
 
     def check(v, path):
-        if not isinstance(v, int) or isinstance(v, bool) or (ge is not None and v < ge):
+        if not isinstance(v, int) or isinstance(v, bool) or (ge is not None and v < ge) \
+                or (le is not None and v > le):
             raise bad(path, exp, v)
         return int(v)
     return check

@@ -120,7 +120,7 @@ def test_room_from_wall_segments(tmp_path):
     ("seed: true", "scene.yaml: seed: expected an integer >= 0, got True"),
     ("laser: {dropout: 1.5}", "scene.yaml: laser.dropout: expected a number in [0, 1), got 1.5"),
     ("laser: {fov_deg: 400}", "scene.yaml: laser.fov_deg: expected a number in (0, 360], got 400"),
-    ("laser: {beams: 66.5}", "scene.yaml: laser.beams: expected an integer >= 2, got 66.5"),
+    ("laser: {beams: 66.5}", "scene.yaml: laser.beams: expected an integer in [2, 100000], got 66.5"),
     ("laser: {range_min_m: 6}", "scene.yaml: laser.range_min_m: expected a number < laser.range_max_m (5.6)"),
     ("slam: {free_thresh: 0.7}", "scene.yaml: slam.free_thresh: expected a number < slam.occupied_thresh"),
     ("slam: {size_m: 6}", "scene.yaml: slam.size_m: expected a number > 4 * robots.radius_m (7) so that"),
@@ -191,3 +191,53 @@ def test_center_error_vectors_are_seeded():
     assert a == b
     assert math.isclose(math.hypot(*a["Lyon"]), 0.2) and math.isclose(math.hypot(*a["Auckland"]), 0.2)
     assert a["Nevers"] == (0.0, 0.1)
+
+
+# --- issue 12: scenes that would run but mean nothing, sizes that do not fit, YAML 1.2 numbers ---------
+@pytest.mark.parametrize("text", ["", "\n", "# only a comment\n", "---\n"])
+def test_empty_scenario_file_is_refused(tmp_path, text):
+    with pytest.raises(ScenarioError, match=r"^scene.yaml: empty scenario \(expected a mapping"):
+        load_scenario(write(tmp_path, text))
+
+
+@pytest.mark.parametrize("sets, needle", [
+    (["robots.radius_m=3.5"], "robots.radius_m=3.5): robots.radius_m: expected a circle about world.center"),
+    (["world.center=[5, 0]"], "world.center: expected a point inside the room (the room spans x [-3.75, 3.75]"),
+    (["world.center=[3, 0]"], "robots.radius_m: expected a circle"),  # inside, but the circle is not
+    (["world.pillars=[{center: [9, 0]}]"], "world.pillars[0]: expected inside the room"),
+    (["world.pillars=[{center: [0.15, 1.5], radius: 0.2}]"], "world.pillars[0]: expected clear of robot Lyon's start"),
+    (["world.objects=[{type: box, center: [-1.24, -0.9], size_m: [0.3, 0.3]}]"],
+     "world.objects[0]: expected clear of robot Auckland's start"),
+    (["world.objects=[{type: chair, center: [3.7, 0]}]"], "world.objects[0]: expected inside the room"),
+    (["merger.roi_m=1000"], "merger.roi_m: expected a number in (0, 100], got 1000"),
+    (["slam.size_m=1000"], "slam.size_m: expected a grid of at most 4000 cells a side"),
+    (["dt_s=1e-6"], "duration_s: expected at most 1000000 ticks"),
+    (["laser.beams=100000000"], "laser.beams: expected an integer in [2, 100000]"),
+])
+def test_geometry_and_sizes_are_checked(sets, needle):
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    with pytest.raises(ScenarioError) as e:
+        sc.with_overrides(sets)
+    assert needle in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+def test_bundled_scenes_pass_the_geometry_checks_and_a_clear_start_is_accepted():
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    assert sc.with_overrides(["world.pillars=[{center: [0.15, 1.15], radius: 0.1}]"]).world.pillars[0].radius == 0.1
+    assert sc.with_overrides(["robots.radius_m=2.5"]).robots.radius_m == 2.5  # 2.5 + 0.18 < 3 - 0.1
+    load_scenario(bundled_scenarios()["scene2"])
+
+
+@pytest.mark.parametrize("text, value", [("1e1", 10.0), ("2E1", 20.0), ("1.5e1", 15.0), (".5e2", 50.0)])
+def test_exponent_numbers_are_numbers(tmp_path, text, value):
+    """YAML 1.2: ``1e1`` is ten (PyYAML's YAML 1.1 reads a string and the check refused it)."""
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    assert sc.with_overrides([f"duration_s={text}"]).duration_s == value
+    assert load_scenario(write(tmp_path, f"duration_s: {text}\n")).duration_s == value
+
+
+@pytest.mark.parametrize("text", ["when: 2001-13-01\n", "\x00\n", "a: [" * 2000 + "\n"])
+def test_yaml_the_parser_cannot_construct_is_one_line(tmp_path, text):
+    with pytest.raises(ScenarioError, match=r"^scene.yaml: invalid YAML") as e:
+        load_scenario(write(tmp_path, text))
+    assert "\n" not in str(e.value)

@@ -1,42 +1,92 @@
-"""The fast rotation search: the reference's answer without 380 whole-ROI rotations.
+"""The fast rotation search: exactly the reference's answer, by branch and bound over the 360 coarse angles.
 
 :func:`fast_search` returns what :func:`merger.search.reference_search` returns — the thesis's search
-(3.3.1): the best of the 360 coarse 1° angles (ties to the first), refined at 0.1° over ±1° (first
-maximum) — in three steps:
+(3.3.1): the first maximum of the 360 coarse 1° scores, refined at 0.1° over ±1° (first maximum) — and
+the same runner-up, for every input and all three measures. It never guesses: an angle is skipped only
+when a *true upper bound* of its score shows it cannot win; every other angle is evaluated exactly.
 
-1. **All angles, approximately** (:mod:`merger.polar`): both ROIs are max-pooled and resampled on rings
-   about the shared center, where a rotation is a circular shift; the measure's counts for all 360
-   angles are FFT cross-correlations along the angle axis (rings weighted by the area of a sample).
-2. **A few coarse angles, exactly** (:class:`merger.sparse.SparseEvaluator`, which evaluates the
-   measure exactly from the few cells that can change its counts): the approximate profile's peaks near
-   its best, the angles of a flat top, and the best peak half a turn away (the thesis's typical false
-   alignment, on symmetric scenes) are hill-climbed on the *exact* 1° profile. For ω̃, cheap upper
-   bounds rule out most of them without evaluating them. The best exact local maximum is the
-   reference's coarse angle — provided the approximation does not rank the true best peak far below
-   the others, which the property tests and sweeps over generated scenes have not seen happen.
+1. **Upper bounds for all 360 coarse angles at once** (:class:`SectorBounds`). The plane around each
+   center is cut into polar *sectors*: bands of width ``wb`` and, in band i, ``360·B_i`` equal angular
+   bins (so a rotation by a whole degree maps every sector exactly onto another of the same band). Every
+   reference ROI lattice point p falls in one sector s(p); at a coarse angle θ its lookup point
+   c_m + R(−θ)p lies in the moving-frame sector s(p) − θ (same band, bins shifted by B_i·θ). Per moving
+   sector we know, conservatively, whether a lookup there *may* be occupied, is *surely* free (inside
+   the moving ROI's square) or *surely* occupied. The bound counts are then circular correlations over
+   the 360 degree shifts (one FFT product per sector row, summed; integers, rounded):
+
+   * ``A(θ)  = Σ_p [ref occupied at p] · MayOcc(s(p) − θ)``            ≥ agr̃(θ)
+   * ``D(θ)  = Σ_p [ref occupied] · SureFree(s(p) − θ) + [ref free] · SureOcc(s(p) − θ)`` ≤ dis(θ)
+   * ``F(θ)  = Σ_p [ref free] · MayFree(s(p) − θ)``                     ≥ free/free(θ)  (Birk–Carpin)
+   * ``Y⁺(θ) = Σ_p MayOcc(s(p) − θ)``, ``Y⁻(θ) = Σ_p SureOcc(s(p) − θ)``: Y⁻ ≤ Σy(θ) ≤ Y⁺ (NCC)
+
+   and the score bounds: ω̃ ≤ A / (A + D) (0 when A = 0); Birk–Carpin ω ≤ (A + F) / (A + F + D);
+   NCC ≤ the largest value (sxy − c·sy)/√(vx·vy(sy)) can take with sxy ≤ min(A, sy), Y⁻ ≤ sy ≤ Y⁺
+   (:func:`_ncc_upper`), with 0 included (the degenerate cases).
+2. **Best-first exact evaluation** (:class:`merger.sparse.SparseEvaluator`, which reproduces the
+   reference's counts exactly). Angles are evaluated in decreasing order of bound, in small batches,
+   until every unevaluated angle j has ``bound(j) < best`` or ``bound(j) == best and j > best angle``:
+   then none can beat the best one in the reference's order (higher score, then the first angle), and
+   the best evaluated angle is the reference's coarse angle — ties and plateaus included, identical maps
+   too (the order of evaluation never decides, only scores and indices do).
 3. **The refinement, exactly**: the 21 angles ``coarse ± 1°`` at 0.1° (the same floats as the
-   reference's), all evaluated exactly; the first maximum is θ, and its score and counts are the exact
-   evaluator's, equal to ``problem.evaluate(θ)``.
+   reference's), all evaluated; the first maximum is θ; its score and counts equal ``problem.evaluate(θ)``.
+4. **The runner-up** (best coarse angle ≥ 10° from θ, first maximum) by the same best-first loop over
+   the far zone: exact. It is computed when first read (deferred, :class:`merger.search.Alignment`).
 
-The runner-up (best coarse angle ≥ 10° from θ) is evaluated exactly too, but found by a bounded search:
-exact climbing from the far zone's edges (the main peak's flanks) and from the approximate profile's
-best far peaks. Its value is an exact profile value, never above the reference's runner-up, and equal
-to it on ~95% of generated cases (the misses are flat, noisy far zones whose maximum is elsewhere).
-The returned ``profile`` is the approximate profile with the exact values substituted at every coarse
-angle evaluated exactly before the search returned. All three measures (ω̃, Birk–Carpin ω, NCC) are
-supported; Birk–Carpin's free/free count touches every free reference cell, so its exact evaluations
-are the slowest. The usual case is one batch of exact evaluations (:meth:`SparseEvaluator.prepare`).
+**Why the bounds hold.**
 
-The runner-up and the counts are handed over deferred (:class:`merger.search.Alignment`): the first
-read runs the runner-up search, or the free/free count at θ (ω̃ and NCC need only agr̃ and dis), on the
-search's own evaluator. A merge cycle reads θ and the score only.
+* *Sectors.* Band i is ``[i·wb, (i+1)·wb]``, bin j of band i is ``[j, j+1] / B_i`` degrees (closed;
+  bands and bins are widened by a margin ``δ`` — 1e-7 cell in radius, 1e-9 rad plus 1e-7 cell of arc —
+  that exceeds every floating-point error below by orders of magnitude). A lattice point p with polar
+  coordinates (r, φ) about the reference center is put in the sector holding (r, φ) as computed; its
+  lookup point at the whole-degree angle θ is c_m + R(−θ)p, at polar coordinates (r, φ − θ) about the
+  moving center up to rounding (≪ δ), hence inside the (widened) moving sector s(p) − θ: the bins of
+  band i shift by exactly B_i·θ. The reference resolves that point to the moving cell containing it
+  (floor), and to *unknown* outside the moving ROI's square.
+* *Touching.* A cell touches a sector when its closed square meets the widened sector. We mark every
+  sector whose polar box meets the cell's polar box (radius from the nearest to the farthest point of
+  the square, angle over its corners; the whole circle for a cell at the center): a superset.
+* *MayOcc* = touched by an occupied cell not entirely outside the square (with margin). If p's lookup
+  is occupied and inside the square, its cell is such a cell and it touches the sector: A ≥ agr̃.
+* *SureFree(s)* = the sector's center point lies in a cell of class Fin (free, entirely inside the
+  square, with margin) **and** no cell of the boundary of Fin's complement (a non-Fin cell with an
+  8-neighbour in Fin) touches s. Then every point of s lies in a Fin cell: otherwise a path inside the
+  (connected) sector from its center to that point passes from a Fin cell to a non-Fin cell through a
+  shared edge or corner, and that non-Fin cell is a boundary cell touching s. So a lookup in s is free
+  and inside the square: a ref-occupied p counts in dis. *SureOcc* is the same with Oin (occupied,
+  entirely inside the square); a ref-free p whose lookup is surely occupied counts in dis, and in Σy.
+  The two parts of D count disjoint sets of lattice points (ref occupied / ref free): D ≤ dis.
+* *MayFree(s)* = the center lies in a Fany cell (free, not entirely outside the square) **or** a
+  boundary Fany cell (with an 8-neighbour not in Fany) touches s; by the same path argument a lookup
+  in s that is free and inside the square makes MayFree(s) true: F ≥ free/free.
+* *Counts → scores.* ω̃ = a/(a+d) grows with a and falls with d; integers are exact in float64 and
+  correctly rounded division is monotone, so the float A/(A+D) ≥ the float the reference computes.
+  Birk–Carpin likewise with a + f. NCC's bound is monotonicity on two intervals of sy (see
+  :func:`_ncc_upper`), inflated by 1e-9 relative to cover rounding.
+* *Correlations.* All counts are sums of products of integers below 2^31 computed in float64 FFTs of
+  length 360; the rounding error is below 1e-6 (far below ½), so ``rint`` gives the exact integers.
+* Cells beyond the moving crop never matter: the crop reaches past every sector by two cells, and its
+  outermost cells lie outside the square (non-Fin, non-Oin, non-Fany) like the cells beyond it.
+
+Everything about the sectors and the lattice depends only on (n, cell size, sector size) and is cached.
+The returned ``profile`` is an **upper envelope**: exact at the coarse angles evaluated before the search
+returned, an upper bound of the exact score elsewhere (:func:`exact_profile` gives the reference's
+profile, evaluating the rest). The counts (Birk–Carpin's free/free part) and the runner-up are handed
+over deferred: a merge cycle reads θ and the score only.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import math
+import threading
+from dataclasses import dataclass
+from functools import lru_cache
 
-from .polar import approximate_profile
+import cv2
+import numpy as np
+import scipy.fft as sfft
+
+from .grid import FREE_S, OCCUPIED_S
 from .search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
@@ -46,177 +96,360 @@ from .search import (
     register_method,
     wrap_deg,
 )
-from .sparse import SparseEvaluator
+from .sparse import SparseEvaluator, lattice_coords
 
-MAX_CANDIDATES = 4  # approximate peaks looked at exactly
-MAX_HIGH = {"birk_carpin": 24}  # angles of a flat approximate top looked at exactly (default 6)
-MARGIN = 0.4  # a peak is a candidate when within MARGIN × (best − median) of the best approximate value
-OPPOSITE_DEG = 20  # the best peak within this of the top + 180° is always a candidate
-RUNNER_UP_CANDIDATES = 2
-RUNNER_UP_HIGH = 0  # only the far zone's approximate peaks (its edges cover the main peak's flanks)
-RUNNER_UP_STEPS = 2  # exact climbing moves allowed from each runner-up start
-WINDOW = 2  # coarse angles either side of a candidate whose upper bounds decide if it can be skipped
+FIRST_BATCH = 3  # angles evaluated exactly in the first batch (best bounds first); batches then double
+MAX_BATCH = 48
+_DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
+_DELTA_RAD = 1e-9
+_FULL_CIRCLE_R = 1e-6  # a cell closer than this (cells) to the center touches every angle
+_NCC_INFLATE = 1e-9
+
+
+def sector_grain(n: int) -> float:
+    """Sector size (band width and arc of a bin at the band's outer edge), in ROI cells, for an (n, n) ROI:
+    about one cell up to 256 cells, then coarser (fewer sectors: the bounds cost ∝ (n / grain)²)."""
+    return max(1.0, n / 224.0)
+
+
+@dataclass(frozen=True, eq=False)
+class SectorLayout:
+    """The polar sectors of an (n, n) ROI lattice of cell size ``res`` (see the module documentation).
+
+    Sectors are stored two ways: *natural* (band by band, bin by bin; ``noff[i] + j``) and *rows*
+    (``(R, 360)``: row ``roff[i] + j mod B_i``, column ``j // B_i``) where a whole-degree rotation is a
+    circular shift of every row. ``lattice_row_id`` is the rows-layout sector (``row * 360 + col``) of
+    every lattice point (flat ``i * n + j``); ``to_rows`` gathers a natural-layout array into rows;
+    ``cx, cy`` are the sectors' center points (metres from the center, natural layout)."""
+
+    n: int
+    res: float
+    wb: float
+    bins: np.ndarray  # B_i per band
+    noff: np.ndarray
+    roff: np.ndarray
+    total: int
+    rows: int
+    lattice_row_id: np.ndarray
+    to_rows: np.ndarray
+    cx: np.ndarray
+    cy: np.ndarray
+    n_all_spec: np.ndarray
+
+
+@lru_cache(maxsize=16)
+def sector_layout(n: int, res: float, grain: float) -> SectorLayout:
+    wb = grain * res
+    k = lattice_coords(n, res)
+    rmax = float(np.hypot(k[0], k[0]))
+    nb = int(math.floor(rmax / wb)) + 1  # every lattice point's band is < nb
+    outer = (np.arange(nb) + 1) * wb
+    bins = np.maximum(1, np.ceil(2 * math.pi * outer / (360.0 * wb) - 1e-9)).astype(np.int64)
+    lengths = 360 * bins
+    noff = np.concatenate([[0], np.cumsum(lengths)])
+    roff = np.concatenate([[0], np.cumsum(bins)])
+    total, rows = int(noff[-1]), int(roff[-1])
+    # natural id -> rows-layout id
+    band = np.repeat(np.arange(nb), lengths)
+    j = np.arange(total) - noff[band]
+    rows_id = (roff[band] + j % bins[band]) * 360 + j // bins[band]
+    to_rows = np.empty(total, np.intp)
+    to_rows[rows_id] = np.arange(total)
+    # sector centers
+    r_mid = (band + 0.5) * wb
+    phi = np.radians((j + 0.5) / bins[band])
+    cx, cy = r_mid * np.cos(phi), r_mid * np.sin(phi)
+    # lattice points
+    kx, ky = np.meshgrid(k, k)
+    r = np.hypot(kx, ky).ravel()
+    ph = np.mod(np.degrees(np.arctan2(ky, kx)).ravel(), 360.0)
+    bd = np.minimum((r / wb).astype(np.int64), nb - 1)
+    bn = np.minimum((ph * bins[bd]).astype(np.int64), lengths[bd] - 1)
+    lat = (roff[bd] + bn % bins[bd]) * 360 + bn // bins[bd]
+    lay = SectorLayout(n, res, wb, bins, noff, roff, total, rows, lat.astype(np.intp), to_rows, cx, cy,
+                       np.empty(0))
+    object.__setattr__(lay, "n_all_spec", _row_spectra(lay, _hist(lay, None)))
+    return lay
+
+
+def _hist(lay: SectorLayout, mask_flat) -> np.ndarray:
+    """(R, 360) count of lattice points per sector (those in ``mask_flat``, or all)."""
+    ids = lay.lattice_row_id if mask_flat is None else lay.lattice_row_id[mask_flat]
+    return np.bincount(ids, minlength=lay.rows * 360).reshape(lay.rows, 360).astype(np.float64)
+
+
+def _row_spectra(lay: SectorLayout, rows_array: np.ndarray) -> np.ndarray:
+    return sfft.rfft(rows_array, axis=1)
+
+
+def _corr(ref_spec: np.ndarray, mov_spec: np.ndarray) -> np.ndarray:
+    """Σ_rows Σ_a ref[row, a] · mov[row, (a − θ) mod 360] for θ = 0..359, as exact integers (float64)."""
+    return np.rint(sfft.irfft(np.einsum("rk,rk->k", ref_spec, np.conj(mov_spec)), n=360))
+
+
+def _polar_boxes(x0, y0, size):
+    """Polar boxes (rmin, rmax, angle lo, angle hi in degrees, full circle?) of squares [x0, x0+size] ×
+    [y0, y0+size] (metres from the center)."""
+    x1, y1 = x0 + size, y0 + size
+    dx = np.maximum(np.maximum(x0, -x1), 0.0)
+    dy = np.maximum(np.maximum(y0, -y1), 0.0)
+    rmin = np.hypot(dx, dy)
+    rmax = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1)))
+    xc, yc = x0 + size / 2, y0 + size / 2
+    ac = np.arctan2(yc, xc)
+    lo = np.full(x0.shape, np.inf)
+    hi = np.full(x0.shape, -np.inf)
+    for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+        d = np.mod(np.arctan2(cy, cx) - ac + math.pi, 2 * math.pi) - math.pi
+        np.minimum(lo, d, out=lo)
+        np.maximum(hi, d, out=hi)
+    return rmin, rmax, ac + lo, ac + hi
+
+
+class SectorBounds:
+    """Upper bounds of a problem's coarse scores at 0°, 1°, …, 359° (see the module documentation)."""
+
+    def __init__(self, problem: RotationProblem, ref_roi: np.ndarray, sx: int) -> None:
+        self.problem = problem
+        n, res = problem.n, problem.ref.resolution
+        self.lay = lay = sector_layout(n, res, sector_grain(n))
+        self.measure = problem.measure
+        flat = ref_roi.reshape(-1)
+        ref_occ, ref_free = flat == OCCUPIED_S, flat == FREE_S
+        self.sx = sx
+        mov = self._moving_sectors(problem)
+        spec = {name: _row_spectra(lay, lay_rows) for name, lay_rows in mov.items()}
+        n_occ = _row_spectra(lay, _hist(lay, ref_occ))
+        a = _corr(n_occ, spec["may_occ"])
+        n_free = _row_spectra(lay, _hist(lay, ref_free)) if self.measure != "ncc" else None
+        if self.measure == "ncc":
+            y_hi = _corr(lay.n_all_spec, spec["may_occ"])
+            y_lo = _corr(lay.n_all_spec, spec["sure_occ"])
+            self.values = _ncc_upper(a, y_lo, y_hi, n * n, sx)
+            return
+        d = _corr(n_occ, spec["sure_free"]) + _corr(n_free, spec["sure_occ"])
+        if self.measure == "birk_carpin":
+            a = a + _corr(n_free, spec["may_free"])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.values = np.where(a > 0, a / (a + d), 0.0)
+
+    def _moving_sectors(self, problem: RotationProblem) -> dict[str, np.ndarray]:
+        """(R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin) of the moving map."""
+        lay = self.lay
+        mov, mres = problem.moving, problem.moving.resolution
+        cmx, cmy = problem.center_moving
+        half = problem.n * lay.res / 2.0
+        reach = max(len(lay.bins) * lay.wb, half * math.sqrt(2)) + 3 * mres
+        c0 = int(math.floor((cmx - reach - mov.origin[0]) / mres))
+        r0 = int(math.floor((cmy - reach - mov.origin[1]) / mres))
+        size = int(math.ceil(2 * reach / mres)) + 2
+        crop = np.zeros((size, size), np.uint8)
+        gc0, gc1 = max(c0, 0), min(c0 + size, mov.width)
+        gr0, gr1 = max(r0, 0), min(r0 + size, mov.height)
+        if gc0 < gc1 and gr0 < gr1:
+            crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = mov.states[gr0:gr1, gc0:gc1]
+        # cell corners relative to the moving center, metres
+        xs = mov.origin[0] + (c0 + np.arange(size)) * mres - cmx
+        ys = mov.origin[1] + (r0 + np.arange(size)) * mres - cmy
+        dm = _DELTA_CELL * mres
+        in_x = (xs > -half + dm) & (xs + mres < half - dm)
+        in_y = (ys > -half + dm) & (ys + mres < half - dm)
+        out_x = (xs + mres < -half - dm) | (xs > half + dm)
+        out_y = (ys + mres < -half - dm) | (ys > half + dm)
+        inside = in_y[:, None] & in_x[None, :]
+        outside = out_y[:, None] | out_x[None, :]
+        occ, free = crop == OCCUPIED_S, crop == FREE_S
+        kernel = np.ones((3, 3), np.uint8)
+
+        def dil(m):
+            return cv2.dilate(m.view(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
+
+        # the sectors' center points: their cells
+        cc = np.floor((cmx - mov.origin[0] + lay.cx) / mres).astype(np.intp) - c0
+        cr = np.floor((cmy - mov.origin[1] + lay.cy) / mres).astype(np.intp) - r0
+        center = cr * size + cc
+
+        def touched(cells):
+            return self._raster(np.flatnonzero(cells), size, xs, ys, mres)
+
+        def sure(cls):
+            return cls.reshape(-1).take(center) & ~touched(dil(cls) & ~cls)
+
+        out = {"may_occ": touched(occ & ~outside)}
+        oin = occ & inside
+        out["sure_occ"] = sure(oin) if oin.any() else np.zeros(lay.total, bool)
+        if self.measure != "ncc":
+            out["sure_free"] = sure(free & inside)
+        if self.measure == "birk_carpin":
+            fany = free & ~outside
+            out["may_free"] = fany.reshape(-1).take(center) | touched(fany & dil(~fany))
+        return {k: v.take(lay.to_rows).reshape(lay.rows, 360).astype(np.float64) for k, v in out.items()}
+
+    def _raster(self, cells: np.ndarray, size: int, xs, ys, mres) -> np.ndarray:
+        """Natural-layout mask of the sectors touched by the given crop cells (flat indices)."""
+        lay = self.lay
+        hit = np.zeros(lay.total + 1, np.int64)
+        if cells.size == 0:
+            return hit[:-1] > 0
+        r, c = np.divmod(cells, size)
+        rmin, rmax, lo, hi = _polar_boxes(xs[c], ys[r], mres)
+        dr = _DELTA_CELL * mres
+        nb = len(lay.bins)
+        i0 = np.maximum(np.ceil((rmin - dr) / lay.wb).astype(np.int64) - 1, 0)
+        i1 = np.minimum(np.floor((rmax + dr) / lay.wb).astype(np.int64), nb - 1)
+        keep = i0 <= i1
+        full = rmin < _FULL_CIRCLE_R * mres
+        with np.errstate(divide="ignore"):
+            margin = _DELTA_RAD + np.where(full, 0.0, dr / np.maximum(rmin, 1e-300))
+        lo_deg, hi_deg = np.degrees(lo - margin), np.degrees(hi + margin)
+        i0, i1, lo_deg, hi_deg, full = i0[keep], i1[keep], lo_deg[keep], hi_deg[keep], full[keep]
+        cnt = i1 - i0 + 1
+        cell = np.repeat(np.arange(cnt.size), cnt)
+        band = i0[cell] + np.arange(cell.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        b = lay.bins[band]
+        length = 360 * b
+        j0 = np.ceil(lo_deg[cell] * b).astype(np.int64) - 1
+        j1 = np.floor(hi_deg[cell] * b).astype(np.int64)
+        whole = full[cell] | (j1 - j0 + 1 >= length)
+        span = np.where(whole, length - 1, np.maximum(j1 - j0, 0))
+        j0 = np.where(whole, 0, np.mod(j0, length))
+        base = lay.noff[band]
+        end = j0 + span  # inclusive, may pass the band's end: split
+        first_end = np.minimum(end, length - 1)
+        starts = [base + j0]
+        stops = [base + first_end + 1]
+        wrap = end >= length
+        if wrap.any():
+            starts.append(base[wrap])
+            stops.append(base[wrap] + end[wrap] - length[wrap] + 1)
+        st, sp = np.concatenate(starts), np.concatenate(stops)
+        hit += np.bincount(st, minlength=lay.total + 1)[:lay.total + 1]
+        hit -= np.bincount(sp, minlength=lay.total + 1)[:lay.total + 1]
+        return np.cumsum(hit[:-1]) > 0
+
+
+def _ncc_upper(a: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, size: int, sx: int) -> np.ndarray:
+    """Upper bounds of NCC = (sxy − c·sy)/√(vx·h(sy)), h(s) = s − s²/N, c = sx/N, given sxy ≤ a, sxy ≤ sy,
+    y_lo ≤ sy ≤ y_hi (all per angle). Values with sy ∈ {0, N} or vx ≤ 0 are 0 (the measure's rule), so 0
+    is always included. For s ≤ a the best sxy is s and (1 − c)·√s / √(vx(1 − s/N)) grows with s: its
+    bound is at s = min(a, hi). For s ≥ a the numerator a − c·s falls with s and h is concave: the bound
+    is (a − c·s₀) / √(vx · min(h(s₀), h(hi))) with s₀ = max(a, lo), when positive."""
+    n = float(size)
+    vx = sx - sx * sx / n
+    if vx <= 0:
+        return np.zeros(a.shape)
+    c = sx / n
+    lo = np.maximum(y_lo, 1.0)
+    hi = np.minimum(y_hi, n - 1)
+
+    def h(s):
+        return np.maximum(s - s * s / n, 1e-300)
+
+    out = np.zeros(a.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s1 = np.minimum(a, hi)
+        ok1 = (lo <= s1) & (s1 >= 1)
+        g1 = np.where(ok1, (s1 - c * s1) / np.sqrt(vx * h(s1)), 0.0)
+        s0 = np.maximum(a, lo)
+        ok2 = s0 <= hi
+        num = a - c * s0
+        g2 = np.where(ok2 & (num > 0), num / np.sqrt(vx * np.minimum(h(s0), h(hi))), 0.0)
+    np.maximum(out, g1, out=out)
+    np.maximum(out, g2, out=out)
+    return out * (1 + _NCC_INFLATE) + 1e-12
 
 
 class _Coarse:
-    """Exact 1° profile values, computed on demand, with the reference's order (score, then first angle).
+    """Exact coarse scores on demand (batched), with bounds for the rest, in the reference's order."""
 
-    Upper bounds (:meth:`SparseEvaluator.upper_bounds`, cheap) spare exact evaluations of angles that
-    cannot win a comparison; exact evaluations are batched over all climbs at once.
-    """
-
-    def __init__(self, evaluator: SparseEvaluator) -> None:
-        self.ev = evaluator
+    def __init__(self, ev: SparseEvaluator, bounds: np.ndarray) -> None:
+        self.ev = ev
+        self.bounds = bounds
         self.values: dict[int, float] = {}
-        self._ub: dict[int, float] = {}
 
-    def need(self, idx) -> None:
-        todo = [i for i in dict.fromkeys(int(i) % 360 for i in idx) if i not in self.values]
+    def evaluate(self, idx) -> None:
+        todo = [int(i) for i in dict.fromkeys(idx) if int(i) not in self.values]
         if todo:
             self.values.update(zip(todo, self.ev.scores([float(i) for i in todo]).tolist(), strict=True))
 
-    def bound(self, idx) -> None:
-        todo = [i for i in dict.fromkeys(int(i) % 360 for i in idx) if i not in self._ub]
-        if todo:
-            self._ub.update(zip(todo, self.ev.upper_bounds([float(i) for i in todo]).tolist(), strict=True))
-
-    def upper(self, i: int) -> float:
-        i %= 360
-        return self.values[i] if i in self.values else self._ub[i]
-
-    def key(self, i: int):
-        return (self.values[i % 360], -(i % 360))
-
-    def best_of(self, starts, allowed: np.ndarray | None = None, steps: int = 360, window: int = WINDOW):
-        """The best exact local maximum climbed from ``starts`` (within ``allowed``, a mask over 0..359,
-        at most ``steps`` moves each). Climbs advance together, one batch of exact evaluations per step;
-        a neighbour is evaluated only if its upper bound reaches the climb's current value, and a climb
-        is dropped when nothing around it can reach the best value found so far."""
-        ok = (lambda i: True) if allowed is None else (lambda i: bool(allowed[i % 360]))
-        starts = [s % 360 for s in starts if ok(s)]
-        if not starts:
+    def best(self, allowed: np.ndarray | None = None) -> int | None:
+        """The first maximum of the exact coarse profile over ``allowed`` (a mask over 0..359): evaluates
+        angles in decreasing order of bound until no other angle can beat the best one evaluated."""
+        order = np.lexsort((np.arange(360), -self.bounds))  # best bound first, then smallest angle
+        if allowed is not None:
+            order = order[allowed[order]]
+        if order.size == 0:
             return None
-        self.bound([s + d for s in starts for d in range(-window, window + 1) if ok(s + d)])
-        known = [s for s in starts if s in self.values]
-        best = max(known, key=self.key) if known else None
-
-        def hopeless(s: int) -> bool:  # nothing around s can beat the best known start
-            return best is not None and s != best and all(
-                self.key(w) <= self.key(best) if w in self.values else self._ub[w] < self.values[best]
-                for w in ((s + d) % 360 for d in range(-window, window + 1) if ok(s + d)))
-
-        pos = [s for s in starts if not hopeless(s)]
-        self.need(pos)
-        done = []
-        for _ in range(steps + 1):
-            around = {p: [q % 360 for q in (p - 1, p + 1) if ok(q)] for p in pos}
-            self.bound([q for qs in around.values() for q in qs])
-            if best is not None:  # a climb below the best whose neighbours cannot reach it stops here
-                pos = [p for p in pos if p == best or not (
-                    self.values[p] < self.values[best] and all(self.upper(q) < self.values[best]
-                                                               for q in around[p]))]
-            if not pos:
-                break
-            contenders = {p: [q for q in around[p] if not self.upper(q) < self.values[p]] for p in pos}
-            self.need([q for p in pos for q in contenders[p]])
-            moved = []
-            for p in pos:
-                nxt = max([p] + contenders[p], key=self.key)
-                if nxt == p:
-                    done.append(p)
-                    if best is None or self.key(p) > self.key(best):
-                        best = p
-                else:
-                    moved.append(nxt)
-            pos = list(dict.fromkeys(moved))
-        done += pos  # out of steps: where the climbs stand
-        return max(done + ([best] if best is not None else []), key=self.key)
+        batch = FIRST_BATCH
+        best = None
+        while True:
+            if best is None:
+                open_ = [int(i) for i in order if int(i) not in self.values]
+            else:
+                bv, bi = self.values[best], best
+                open_ = [int(i) for i in order if int(i) not in self.values
+                         and (self.bounds[i] > bv or (self.bounds[i] == bv and i < bi))]
+            if not open_:
+                return best
+            self.evaluate(open_[:batch])
+            batch = min(2 * batch, MAX_BATCH)
+            known = [int(i) for i in order if int(i) in self.values]
+            best = max(known, key=lambda i: (self.values[i], -i))
 
 
-def _local_maxima(profile: np.ndarray) -> np.ndarray:
-    """Indices of circular local maxima (≥ left neighbour, > right neighbour), best first."""
-    ext = np.concatenate([profile[-1:], profile, profile[:1]])
-    idx = np.flatnonzero((profile >= ext[:-2]) & (profile > ext[2:]))
-    return idx[np.argsort(-profile[idx], kind="stable")]
-
-
-def _candidates(profile: np.ndarray, allowed=None, limit: int = MAX_CANDIDATES,
-                high_limit: int = 6) -> list[int]:
-    """The approximate profile's angles worth an exact look, most promising first: its local maxima
-    close to the best one (at most ``limit``), and the angles close to the best value (at most
-    ``high_limit``) — a flat top (Birk–Carpin's profiles) can hide the exact maximum a few degrees away."""
-    idx = np.arange(profile.size) if allowed is None else np.flatnonzero(allowed)
-    if idx.size == 0:
-        return []
-    vals = profile[idx]
-    top = float(vals.max())
-    tol = MARGIN * max(top - float(np.median(vals)), 1e-9)
-    peaks = _local_maxima(profile)
-    if allowed is not None:
-        peaks = peaks[allowed[peaks]]
-    high = idx[np.argsort(-vals, kind="stable")[:high_limit]]
-    out = [int(i) for i in peaks[:limit] if profile[i] >= top - tol]
-    out += [int(i) for i in high if profile[i] >= top - tol]
-    return list(dict.fromkeys(out))
+def _prepare(problem: RotationProblem):
+    ev = SparseEvaluator(problem)
+    bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx)).values
+    return ev, _Coarse(ev, np.asarray(bounds, np.float64))
 
 
 def fast_search(problem: RotationProblem) -> Alignment:
-    """Rotation search returning the reference's answer (see the module documentation).
+    """Rotation search returning exactly the reference's answer (see the module documentation).
 
     Parameters
     ----------
-    problem : the rotation problem (maps, centers, ROI side, measure).
+    problem : the rotation problem (maps, centers, ROI side, measure); ``window_m`` is not looked at
+        (:func:`merger.search.search` sends windowed problems to :mod:`merger.window`).
 
     Returns
     -------
-    Alignment with ``method="fast"``: ``theta_deg``, ``score`` and ``counts`` equal to the reference's
-    (``score``/``counts`` are ``problem.evaluate(theta_deg)``); ``runner_up_deg``/``runner_up_score``
-    are exact values at an exact local maximum of the far zone; ``profile`` is approximate except at
-    the angles evaluated exactly.
+    Alignment with ``method="fast"``: ``theta_deg``, ``score``, ``counts``, ``runner_up_deg`` and
+    ``runner_up_score`` equal to :func:`merger.search.reference_search`'s (counts and runner-up computed
+    on first access); ``profile`` is an **upper envelope** of the reference's profile — exact at every
+    coarse angle evaluated, a true upper bound elsewhere (:func:`exact_profile` completes it).
     """
-    ev = SparseEvaluator(problem)
-    coarse = _Coarse(ev)
-    approx = approximate_profile(problem)
-    starts = _candidates(approx, high_limit=MAX_HIGH.get(problem.measure, 6))
-    top = starts[0]
-    # the thesis's typical false alignment is a half turn (symmetric scenes): its peak is always checked
-    opposite = np.abs(angle_diff_deg(np.arange(360.0), top + 180.0)) <= OPPOSITE_DEG
-    starts += [i for i in _candidates(approx, opposite, 1, 0)[:1] if i not in starts]
-    # One batch for the usual case: the refinement around the best approximate peak (it holds the peak's
-    # ±1° coarse neighbours) and bounds around the other candidates.
-    ev.prepare(exact=[float(a) for a in fine_angles(float(top))],
-               bounds=[float((s + d) % 360) for s in starts[1:] for d in range(-WINDOW, WINDOW + 1)])
-    coarse.need([top - 1, top, top + 1])  # from the refinement batch, unless they wrap around 0°
-    best = coarse.best_of(starts)
+    ev, coarse = _prepare(problem)
+    best = coarse.best()
     fine = [float(a) for a in fine_angles(float(best))]
     values = ev.scores(fine)
     k = int(np.argmax(values))  # the first maximum, as the reference's strict '>' scan
     theta = wrap_deg(fine[k])
-    profile = approx.copy()
+    profile = coarse.bounds.copy()
     for i, v in coarse.values.items():
         profile[i] = v
-    # the free/free count (Birk–Carpin's part of the counts) and the runner-up are computed if asked for
+    lock = threading.Lock()
+
+    def runner_up():
+        with lock:
+            return _runner_up(coarse, theta)
+
     return Alignment(theta, float(values[k]), lambda: ev.similarity(fine[k]).counts, problem.measure, "fast",
-                     problem.roi_m, profile, lambda: _runner_up(coarse, approx, theta),
-                     fine=(np.asarray(fine), np.asarray(values, np.float64)))
+                     problem.roi_m, profile, runner_up, fine=(np.asarray(fine), np.asarray(values, np.float64)))
 
 
-def _runner_up(coarse: _Coarse, approx: np.ndarray, theta: float) -> tuple[float, float]:
-    """The best coarse angle at least 10° from θ: exact values, climbing within that zone from its edges
-    (the main peak's flanks) and from the approximate profile's best far peaks."""
-    angles = np.arange(360) * (360.0 / 360)
+def _runner_up(coarse: _Coarse, theta: float) -> tuple[float, float]:
+    """The reference's runner-up: the first maximum of the coarse profile at least 10° from θ."""
+    angles = np.arange(360) * 1.0
     far = np.abs(angle_diff_deg(angles, theta)) >= RUNNER_UP_MIN_SEPARATION_DEG
-    if not far.any():
+    r = coarse.best(far)
+    if r is None:
         return float("nan"), float("nan")
-    edges = [i for i in np.flatnonzero(far).tolist() if not (far[i - 1] and far[(i + 1) % 360])]
-    cands = _candidates(approx, far, RUNNER_UP_CANDIDATES, RUNNER_UP_HIGH)
-    starts = list(dict.fromkeys(edges + cands))
-    # one batch: the starts and their neighbours exactly (the far peaks), bounds one step further out
-    coarse.ev.prepare(exact=[float((i + d) % 360) for i in cands[:1] for d in (-1, 0, 1)]
-                      + [float(i % 360) for i in edges],
-                      bounds=[float((i + d) % 360) for i in starts for d in (-2, -1, 1, 2)])
-    r = coarse.best_of(starts, far, RUNNER_UP_STEPS, window=1)
     return float(angles[r]), coarse.values[r]
+
+
+def exact_profile(problem: RotationProblem) -> np.ndarray:
+    """The reference's coarse profile (all 360 exact scores at 0°, 1°, …, 359°), by the exact evaluator."""
+    return SparseEvaluator(problem).scores([float(a) for a in range(360)])
 
 
 register_method("fast", fast_search)

@@ -381,10 +381,11 @@ class _Coarse:
         if order.size == 0:
             return None
         batch = FIRST_BATCH
-        best = None
         while True:
+            known = [int(i) for i in order if int(i) in self.values]
+            best = max(known, key=lambda i: (self.values[i], -i)) if known else None
             if best is None:
-                open_ = [int(i) for i in order if int(i) not in self.values]
+                open_ = [int(i) for i in order]
             else:
                 bv, bi = self.values[best], best
                 open_ = [int(i) for i in order if int(i) not in self.values
@@ -393,8 +394,6 @@ class _Coarse:
                 return best
             self.evaluate(open_[:batch])
             batch = min(2 * batch, MAX_BATCH)
-            known = [int(i) for i in order if int(i) in self.values]
-            best = max(known, key=lambda i: (self.values[i], -i))
 
 
 def _prepare(problem: RotationProblem):

@@ -98,6 +98,7 @@ from .search import (
 )
 from .sparse import SparseEvaluator, lattice_coords
 
+POOL_DIV = 2.0  # blocks of the moving map ≈ a sector / POOL_DIV
 FIRST_BATCH = 3  # angles evaluated exactly in the first batch (best bounds first); batches then double
 MAX_BATCH = 48
 _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
@@ -109,7 +110,7 @@ _NCC_INFLATE = 1e-9
 def sector_grain(n: int) -> float:
     """Sector size (band width and arc of a bin at the band's outer edge), in ROI cells, for an (n, n) ROI:
     about one cell up to 256 cells, then coarser (fewer sectors: the bounds cost ∝ (n / grain)²)."""
-    return max(1.0, n / 224.0)
+    return max(2.0, n / 100.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,14 +173,27 @@ def sector_layout(n: int, res: float, grain: float) -> SectorLayout:
     return lay
 
 
-def _hist(lay: SectorLayout, mask_flat) -> np.ndarray:
-    """(R, 360) count of lattice points per sector (those in ``mask_flat``, or all)."""
-    ids = lay.lattice_row_id if mask_flat is None else lay.lattice_row_id[mask_flat]
+def _hist(lay: SectorLayout, points) -> np.ndarray:
+    """(R, 360) count of lattice points per sector (those of flat indices ``points``, or all)."""
+    ids = lay.lattice_row_id if points is None else lay.lattice_row_id.take(points)
     return np.bincount(ids, minlength=lay.rows * 360).reshape(lay.rows, 360).astype(np.float64)
 
 
+def _pool(a: np.ndarray, q: int, op) -> np.ndarray:
+    """Block reduction (``np.maximum`` or ``np.minimum``) of a square array over q × q blocks."""
+    if q == 1:
+        return a
+    rows = a[0::q].copy()
+    for i in range(1, q):
+        op(rows, a[i::q], out=rows)
+    out = rows[:, 0::q].copy()
+    for j in range(1, q):
+        op(out, rows[:, j::q], out=out)
+    return out
+
+
 def _row_spectra(lay: SectorLayout, rows_array: np.ndarray) -> np.ndarray:
-    return sfft.rfft(rows_array, axis=1)
+    return sfft.rfft(rows_array, axis=-1)
 
 
 def _corr(ref_spec: np.ndarray, mov_spec: np.ndarray) -> np.ndarray:
@@ -218,70 +232,84 @@ class SectorBounds:
         ref_occ, ref_free = flat == OCCUPIED_S, flat == FREE_S
         self.sx = sx
         mov = self._moving_sectors(problem)
-        spec = {name: _row_spectra(lay, lay_rows) for name, lay_rows in mov.items()}
-        n_occ = _row_spectra(lay, _hist(lay, ref_occ))
+        hists = {"n_occ": _hist(lay, np.flatnonzero(ref_occ))}
+        if self.measure == "birk_carpin":
+            hists["n_free"] = _hist(lay, np.flatnonzero(ref_free))
+        names = list(mov) + list(hists)
+        spectra = _row_spectra(lay, np.stack([*mov.values(), *hists.values()]))  # one FFT for all
+        spec = dict(zip(names, spectra, strict=True))
+        n_occ = spec["n_occ"]
         a = _corr(n_occ, spec["may_occ"])
-        n_free = _row_spectra(lay, _hist(lay, ref_free)) if self.measure != "ncc" else None
         if self.measure == "ncc":
             y_hi = _corr(lay.n_all_spec, spec["may_occ"])
-            y_lo = _corr(lay.n_all_spec, spec["sure_occ"])
+            y_lo = _corr(lay.n_all_spec, spec["sure_occ"]) if "sure_occ" in spec else np.zeros(360)
             self.values = _ncc_upper(a, y_lo, y_hi, n * n, sx)
             return
-        d = _corr(n_occ, spec["sure_free"]) + _corr(n_free, spec["sure_occ"])
+        n_free = spec.get("n_free")
+        d = _corr(n_occ, spec["sure_free"])
+        if "sure_occ" in spec and n_free is not None:
+            d = d + _corr(n_free, spec["sure_occ"])
         if self.measure == "birk_carpin":
             a = a + _corr(n_free, spec["may_free"])
         with np.errstate(divide="ignore", invalid="ignore"):
             self.values = np.where(a > 0, a / (a + d), 0.0)
 
     def _moving_sectors(self, problem: RotationProblem) -> dict[str, np.ndarray]:
-        """(R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin) of the moving map."""
+        """(R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin) of the moving map.
+
+        The moving map is read in blocks of q × q cells (q ≈ half a sector): a block *may* hold a class
+        when one of its cells does, *surely* holds it when all do; blocks tile the plane like cells, so
+        the touching and path arguments (module documentation) hold for blocks unchanged."""
         lay = self.lay
         mov, mres = problem.moving, problem.moving.resolution
+        q = max(1, int(lay.wb / mres / POOL_DIV))
         cmx, cmy = problem.center_moving
         half = problem.n * lay.res / 2.0
-        reach = max(len(lay.bins) * lay.wb, half * math.sqrt(2)) + 3 * mres
+        reach = max(len(lay.bins) * lay.wb, half * math.sqrt(2)) + 3 * q * mres
         c0 = int(math.floor((cmx - reach - mov.origin[0]) / mres))
         r0 = int(math.floor((cmy - reach - mov.origin[1]) / mres))
-        size = int(math.ceil(2 * reach / mres)) + 2
+        size = (int(math.ceil(2 * reach / mres)) + 2 + q - 1) // q * q
         crop = np.zeros((size, size), np.uint8)
         gc0, gc1 = max(c0, 0), min(c0 + size, mov.width)
         gr0, gr1 = max(r0, 0), min(r0 + size, mov.height)
         if gc0 < gc1 and gr0 < gr1:
             crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = mov.states[gr0:gr1, gc0:gc1]
-        # cell corners relative to the moving center, metres
-        xs = mov.origin[0] + (c0 + np.arange(size)) * mres - cmx
-        ys = mov.origin[1] + (r0 + np.arange(size)) * mres - cmy
+        pmax, pmin = _pool(crop, q, np.maximum), _pool(crop, q, np.minimum)
+        ps, bs = size // q, q * mres  # blocks per side, block side (metres)
+        # block corners relative to the moving center, metres
+        xs = mov.origin[0] + (c0 + q * np.arange(ps)) * mres - cmx
+        ys = mov.origin[1] + (r0 + q * np.arange(ps)) * mres - cmy
         dm = _DELTA_CELL * mres
-        in_x = (xs > -half + dm) & (xs + mres < half - dm)
-        in_y = (ys > -half + dm) & (ys + mres < half - dm)
-        out_x = (xs + mres < -half - dm) | (xs > half + dm)
-        out_y = (ys + mres < -half - dm) | (ys > half + dm)
+        in_x = (xs > -half + dm) & (xs + bs < half - dm)
+        in_y = (ys > -half + dm) & (ys + bs < half - dm)
+        out_x = (xs + bs < -half - dm) | (xs > half + dm)
+        out_y = (ys + bs < -half - dm) | (ys > half + dm)
         inside = in_y[:, None] & in_x[None, :]
         outside = out_y[:, None] | out_x[None, :]
-        occ, free = crop == OCCUPIED_S, crop == FREE_S
         kernel = np.ones((3, 3), np.uint8)
 
         def dil(m):
             return cv2.dilate(m.view(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
 
-        # the sectors' center points: their cells
+        # the sectors' center points: their blocks
         cc = np.floor((cmx - mov.origin[0] + lay.cx) / mres).astype(np.intp) - c0
         cr = np.floor((cmy - mov.origin[1] + lay.cy) / mres).astype(np.intp) - r0
-        center = cr * size + cc
+        center = (cr // q) * ps + cc // q
 
-        def touched(cells):
-            return self._raster(np.flatnonzero(cells), size, xs, ys, mres)
+        def touched(blocks):
+            return self._raster(np.flatnonzero(blocks), ps, xs, ys, bs)
 
         def sure(cls):
             return cls.reshape(-1).take(center) & ~touched(dil(cls) & ~cls)
 
-        out = {"may_occ": touched(occ & ~outside)}
-        oin = occ & inside
-        out["sure_occ"] = sure(oin) if oin.any() else np.zeros(lay.total, bool)
+        out = {"may_occ": touched((pmax == OCCUPIED_S) & ~outside)}
+        oin = (pmin == OCCUPIED_S) & inside
+        if self.measure != "similarity" and oin.any():  # ω̃'s bound gains next to nothing from it
+            out["sure_occ"] = sure(oin)
         if self.measure != "ncc":
-            out["sure_free"] = sure(free & inside)
+            out["sure_free"] = sure((pmin == FREE_S) & (pmax == FREE_S) & inside)
         if self.measure == "birk_carpin":
-            fany = free & ~outside
+            fany = (_pool(crop == FREE_S, q, np.maximum) if q > 1 else crop == FREE_S) & ~outside
             out["may_free"] = fany.reshape(-1).take(center) | touched(fany & dil(~fany))
         return {k: v.take(lay.to_rows).reshape(lay.rows, 360).astype(np.float64) for k, v in out.items()}
 
@@ -360,46 +388,74 @@ def _ncc_upper(a: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, size: int, sx:
 
 
 class _Coarse:
-    """Exact coarse scores on demand (batched), with bounds for the rest, in the reference's order."""
+    """Exact coarse scores on demand (batched), with upper bounds for the rest, in the reference's order.
+
+    ``bounds`` start as the sector bounds; for ω̃ an angle that could still win gets the evaluator's
+    per-angle bound first (:meth:`SparseEvaluator.upper_bounds`: agr̃ and the reference-occupied half of
+    dis exact, the other half of dis replaced by a lower bound — cheap, no whole-ROI pass), and is
+    evaluated exactly only if that bound still lets it win.
+    """
 
     def __init__(self, ev: SparseEvaluator, bounds: np.ndarray) -> None:
         self.ev = ev
         self.bounds = bounds
         self.values: dict[int, float] = {}
+        self.tightened = np.zeros(360, bool)
+        self.can_tighten = ev.problem.measure == "similarity"
 
     def evaluate(self, idx) -> None:
         todo = [int(i) for i in dict.fromkeys(idx) if int(i) not in self.values]
         if todo:
-            self.values.update(zip(todo, self.ev.scores([float(i) for i in todo]).tolist(), strict=True))
+            vals = self.ev.scores([float(i) for i in todo])
+            self.values.update(zip(todo, vals.tolist(), strict=True))
+            self.bounds[todo] = vals
+            self.tightened[todo] = True
+
+    def tighten(self, idx) -> None:
+        todo = [int(i) for i in idx if not self.tightened[i]]
+        if todo:
+            ub = self.ev.upper_bounds([float(i) for i in todo])
+            self.bounds[todo] = np.minimum(self.bounds[todo], ub)
+            self.tightened[todo] = True
 
     def best(self, allowed: np.ndarray | None = None) -> int | None:
         """The first maximum of the exact coarse profile over ``allowed`` (a mask over 0..359): evaluates
         angles in decreasing order of bound until no other angle can beat the best one evaluated."""
-        order = np.lexsort((np.arange(360), -self.bounds))  # best bound first, then smallest angle
-        if allowed is not None:
-            order = order[allowed[order]]
-        if order.size == 0:
+        idx = np.arange(360)
+        mask = np.ones(360, bool) if allowed is None else allowed.copy()
+        if not mask.any():
             return None
         batch = FIRST_BATCH
         while True:
-            known = [int(i) for i in order if int(i) in self.values]
+            known = [i for i in self.values if mask[i]]
             best = max(known, key=lambda i: (self.values[i], -i)) if known else None
-            if best is None:
-                open_ = [int(i) for i in order]
-            else:
-                bv, bi = self.values[best], best
-                open_ = [int(i) for i in order if int(i) not in self.values
-                         and (self.bounds[i] > bv or (self.bounds[i] == bv and i < bi))]
-            if not open_:
+            open_ = mask.copy()
+            open_[list(self.values)] = False
+            if best is not None:
+                bv = self.values[best]
+                open_ &= (self.bounds > bv) | ((self.bounds == bv) & (idx < best))
+            cand = np.flatnonzero(open_)
+            if cand.size == 0:
                 return best
-            self.evaluate(open_[:batch])
+            cand = cand[np.lexsort((cand, -self.bounds[cand]))]  # best bound first, then smallest angle
+            if best is None:  # a first exact value: the best bound of the first few, once tightened
+                if self.can_tighten:
+                    self.tighten(cand[:FIRST_BATCH])
+                    top = cand[:FIRST_BATCH]
+                    cand = top[np.lexsort((top, -self.bounds[top]))]
+                self.evaluate(cand[:1])
+                continue
+            if self.can_tighten and not self.tightened[cand].all():
+                self.tighten(cand)  # all that could still win, in one batch
+                continue
+            self.evaluate(cand[:batch])
             batch = min(2 * batch, MAX_BATCH)
 
 
 def _prepare(problem: RotationProblem):
     ev = SparseEvaluator(problem)
     bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx)).values
-    return ev, _Coarse(ev, np.asarray(bounds, np.float64))
+    return ev, _Coarse(ev, np.array(bounds, np.float64))
 
 
 def fast_search(problem: RotationProblem) -> Alignment:

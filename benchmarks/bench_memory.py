@@ -104,16 +104,18 @@ def main(argv=None) -> int:
     res = Simulation(sc, [probe]).run()
     first = probe.at(min(60.0, args.duration))
     last = probe.samples[-1]
-    minute = [c for s in probe.samples if s["t"] <= 60.0 + 1e-9 for c in [s["cycle_ms"]] if c is not None]
-    tail = [c for s in probe.samples if s["t"] > last["t"] - 60.0 - 1e-9 for c in [s["cycle_ms"]] if c is not None]
-    cpu_first = sum(s["span_cpu_s"] for s in probe.samples if s["t"] <= 60.0 + 1e-9)
-    cpu_last = sum(s["span_cpu_s"] for s in probe.samples if s["t"] > last["t"] - 60.0 - 1e-9)
-    print(f"\nRSS at {first['t']:.0f} s: {first['rss_mb']:.1f} MB; at {last['t']:.0f} s: {last['rss_mb']:.1f} MB "
-          f"({100.0 * (last['rss_mb'] / first['rss_mb'] - 1):+.1f}%)")
-    if minute and tail:
-        print(f"median merge cycle, first minute {statistics.median(minute):.1f} ms; last minute "
-              f"{statistics.median(tail):.1f} ms (ratio {statistics.median(tail) / statistics.median(minute):.2f}); "
-              f"process CPU {cpu_first:.1f} s vs {cpu_last:.1f} s")
+    def span(t0: float, t1: float) -> list[dict]:
+        return [s for s in probe.samples if t0 + 1e-9 < s["t"] <= t1 + 1e-9]
+
+    end = last["t"]
+    print("process CPU per simulated minute (the first tour builds the maps, later ones only refresh them):")
+    for label, (t0, t1) in (("first minute", (0.0, 60.0)), ("second minute", (60.0, 120.0)),
+                            ("last minute", (end - 60.0, end))):
+        rows = span(t0, t1)
+        if rows and t1 <= end + 1e-9:
+            cyc = [s["cycle_ms"] for s in rows if s["cycle_ms"] is not None]
+            print(f"  {label:13s} ({t0:.0f}-{t1:.0f} s): CPU {sum(s['span_cpu_s'] for s in rows):5.1f} s, "
+                  f"median merge cycle {statistics.median(cyc) if cyc else float('nan'):.1f} ms")
     mc = res.merge_cycle_ms()
     print(f"whole run: {mc['count']} cycles, median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms; "
           f"realtime factor {res.realtime_factor:.2f}; false merges {res.false_merges}; "

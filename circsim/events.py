@@ -40,6 +40,10 @@ class MergeCycle:
         centers, t*_ij = R(θ*_ij)·e_j − e_i (e_k: robot k's center error in its map frame), metres.
     translation_error_m : per map, |t − t*| (Euclidean, metres) of that hypothesis (x_i = c_i + t +
         R(θ)(x_j − c_j)); a rotation-only search has t = 0, so its error is |t*|.
+    complete : the cycle merged every teammate's map (a partial team merges the maps it holds, ≥ 2).
+    first_pair_correct : this cycle is the robot's first accepted correct merge of any ≥ 2 maps.
+    teammates_placed : teammates that the alignment the robot holds after this cycle (accepted now or
+        kept from earlier) places correctly, each within both tolerances.
     """
 
     t: float
@@ -53,6 +57,9 @@ class MergeCycle:
     false_merge: bool  # accepted but not correct
     truth_translation_m: dict[str, tuple[float, float]] = field(default_factory=dict)
     translation_error_m: dict[str, float] = field(default_factory=dict)
+    complete: bool = True
+    first_pair_correct: bool = False
+    teammates_placed: int = 0
 
 
 class Observer:

@@ -1,6 +1,11 @@
 """Metrics against ground truth, and the plain serializable record of a run (DESIGN.md, "Metrics").
 
-* ``first_merge_s[robot]`` — simulated seconds to that robot's first accepted, correct merge of all maps.
+* ``first_merge_s[robot]`` — simulated seconds to that robot's first accepted, correct merge of all maps
+  (every teammate correctly placed).
+* ``first_pair_merge_s[robot]`` — simulated seconds to its first accepted, correct merge of any two or
+  more maps (a partial team: its own and at least one teammate's); never later than ``first_merge_s``.
+* ``teammates_placed[robot]`` — over time, how many teammates the alignment it holds places correctly:
+  ``[[t, count], ...]``, one entry per change (``teammates_placed_final``: the count at the end).
 * ``first_merge_arc_deg[robot]`` — degrees it had travelled on its circle by then.
 * ``false_merges`` — accepted alignments that are not correct (any angle error > ``correct_tol_deg`` or
   any translation error > ``correct_tol_m``).
@@ -68,6 +73,10 @@ def judge_placement(theta_deg: dict[str, float], translation_m: dict[str, tuple[
 class RobotMetrics:
     first_merge_s: float | None = None
     first_merge_arc_deg: float | None = None
+    first_pair_merge_s: float | None = None
+    first_pair_merge_arc_deg: float | None = None
+    teammates_placed: list = field(default_factory=list)  # [[t, count], ...] at every change
+    partial_cycles: int = 0  # cycles over a partial team (not every teammate's map held)
     cycles: int = 0
     accepted: int = 0
     false_merges: int = 0
@@ -79,8 +88,15 @@ class RobotMetrics:
     maps_received: int = 0  # teammates' maps taken (newer than the one held)
     maps_stale: int = 0  # teammates' maps dropped: not newer than the one held (out of order, repeated)
 
+    @property
+    def teammates_placed_final(self) -> int:
+        return self.teammates_placed[-1][1] if self.teammates_placed else 0
+
     def to_dict(self) -> dict:
-        return dict(self.__dict__)
+        d = dict(self.__dict__)
+        d["teammates_placed"] = [list(p) for p in self.teammates_placed]
+        d["teammates_placed_final"] = self.teammates_placed_final
+        return d
 
 
 @dataclass
@@ -150,14 +166,20 @@ class MetricsObserver(Observer):
     def on_merge_cycle(self, cycle: MergeCycle) -> None:
         m = self.result.robots[cycle.robot]
         m.cycles += 1
+        m.partial_cycles += not cycle.complete
         self.result.cycle_ms.append(cycle.result.wall_ms)
+        if cycle.teammates_placed != m.teammates_placed_final:
+            m.teammates_placed.append([cycle.t, cycle.teammates_placed])
+        if cycle.first_pair_correct:
+            m.first_pair_merge_s = cycle.t
+            m.first_pair_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)
         if cycle.result.accepted:
             m.accepted += 1
             m.final_angle_error_deg = dict(cycle.angle_error_deg)
             m.final_translation_error_m = dict(cycle.translation_error_m)
             if cycle.false_merge:
                 m.false_merges += 1
-            elif m.first_merge_s is None:
+            elif cycle.complete and m.first_merge_s is None:
                 m.first_merge_s = cycle.t
                 m.first_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)
                 m.first_merge_translation_error_m = max(cycle.translation_error_m.values(), default=0.0)

@@ -35,6 +35,8 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
     /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
     /plots/<robot>/translation_error_m      Scalars: |t − t*| (metres) per teammate, at every accepted merge
     /plots/<robot>/cycle_ms                 Scalars: merge cycle wall time
+    /plots/<robot>/teammates_placed         Scalars: teammates its held alignment places correctly, and the
+                                            maps of the cycle (a partial team merges fewer than all)
     /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
     /run/scenario, /run/metrics             TextDocument (static): the scenario and the final metrics JSON
 
@@ -161,6 +163,7 @@ class RerunRecorder(Observer):
         self.merged_next_s = dict.fromkeys(self.names, -math.inf)
         self.merged_pending: dict[str, tuple[int, MergeCycle]] = {}
         self.series: dict[str, tuple[str, ...]] = {}
+        self.colours_of: dict[tuple[str, str], tuple] = {}  # (plot, series) -> colour, fixed once declared
         self.centers_logged: dict[str, tuple[float, float]] = {}
         self.start_poses = {n: tuple(float(v) for v in sim.start_poses[n][:3]) for n in self.names}
         self.centers_given = {n: tuple(map(float, sim.centers_given[n])) for n in self.names}
@@ -231,6 +234,9 @@ class RerunRecorder(Observer):
                        f"accepted merge (order {order}): θ {thetas}; t {tr}; ν {nus}; angle error {errs}"
                        + (f"; translation error {t_errs}" if t_errs else "") + f" → {verdict}")
             self._log_placed_centers(c)
+            if c.first_pair_correct and not c.first_correct:
+                held = ", ".join(k for k in top.theta_deg if k != n)
+                self._text(n, "INFO", f"FIRST CORRECT PAIR MERGE (partial team: {held}) at {c.t:.1f} s")
             if c.first_correct:
                 arc = f", arc {self.arc_of(n, c.t):.1f}°" if self.arc_of else ""
                 self._text(n, "INFO", f"FIRST CORRECT MERGE of all maps at {c.t:.1f} s{arc}")
@@ -305,15 +311,19 @@ class RerunRecorder(Observer):
 
     def _series(self, path: str, series: list[tuple[str, float, tuple | None]]) -> None:
         """Log one value per named series. The names (and colours) are declared once, statically; later
-        values are put in the declared order (a hypothesis lists its maps in its merge order). A different
-        set of names re-declares them, which relabels the plot's earlier values: the sim never does that."""
+        values are put in the declared order (a hypothesis lists its maps in its merge order). A name not
+        yet declared (a partial team's cycle, then a fuller one) is appended, so earlier values keep their
+        labels; a declared name without a value is logged as NaN (a gap)."""
         values = {name: v for name, v, _ in series}
-        declared = self.series.get(path)
-        if declared is None or set(declared) != set(values):
-            declared = self.series[path] = tuple(values)
-            colours = [col or _PALETTE[i % len(_PALETTE)] for i, (_, _, col) in enumerate(series)]
+        declared = self.series.get(path, ())
+        if not set(values) <= set(declared):  # new names go last: earlier values keep their labels
+            known = set(declared)
+            declared = self.series[path] = declared + tuple(n for n in values if n not in known)
+            given = {name: col for name, _, col in series}
+            colours = [self.colours_of.setdefault((path, name), given.get(name) or _PALETTE[i % len(_PALETTE)])
+                       for i, name in enumerate(declared)]
             self.rec.log(path, rr.SeriesLines(names=list(declared), colors=colours), static=True)
-        self.rec.log(path, rr.Scalars(np.array([values[name] for name in declared], np.float64)))
+        self.rec.log(path, rr.Scalars(np.array([values.get(name, math.nan) for name in declared], np.float64)))
 
     def _log_static_world(self, sim) -> None:
         rec, sc = self.rec, sim.scenario
@@ -413,6 +423,8 @@ class RerunRecorder(Observer):
             if t_errs:
                 self._series(f"{base}/translation_error_m", t_errs)
         self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
+        self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, _GREY),
+                                                  ("maps merged", len(res.top.theta_deg), None)])
 
     def _log_merged(self, c: MergeCycle, step: int, now: float) -> None:
         n, res = c.robot, c.result
@@ -481,6 +493,7 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
                                   ("nu", "ν of the top hypothesis"), ("support", "support (agr̃ + dis)"),
                                   ("angle_error_deg", "accepted angle error vs truth (°)"),
                                   ("translation_error_m", "accepted translation error vs truth (m)"))]
+        ts.append(rrb.TimeSeriesView(name=f"{n}: teammates correctly placed", origin=f"/plots/{p}/teammates_placed"))
         ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle wall time (ms)", origin=f"/plots/{p}/cycle_ms"))
         return rrb.Vertical(*ts, name=n)
 

@@ -4,8 +4,9 @@ One tick every ``dt_s`` (the laser rate): every robot moves along its circle, sc
 obstacles), integrates the scan into its SLAM grid; every ``slam.publish_period_s`` a robot publishes
 its map to itself (a new own map) and every ``network.period_s`` it sends its newest map to its
 teammates through the simulated network. Every tick, each robot that received any new map (its own or
-a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds; maps
-arriving in the same tick share one cycle. Each cycle is judged against ground truth: the rotation
+a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds, once it
+holds ``merger.min_maps`` maps (default 2: a partial team merges what it has); maps arriving in the same
+tick share one cycle. Each cycle is judged against ground truth: the rotation
 θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
 center error (:func:`truth_translation`, :func:`circsim.metrics.judge_placement`).
 
@@ -30,7 +31,7 @@ from merger.team import MergeParams
 
 from .events import MergeCycle, Observer, RobotTick
 from .laser import scan as laser_scan
-from .metrics import MetricsObserver, RobotMetrics, RunResult, judge_placement
+from .metrics import JUDGE_EPS_DEG, JUDGE_EPS_M, MetricsObserver, RobotMetrics, RunResult, judge_placement
 from .motion import CircleTrajectory, trajectories
 from .network import Network
 from .scenario import Scenario, scenario_to_dict
@@ -53,6 +54,8 @@ class Robot:
     next_publish_s: float = 0.0
     next_send_s: float = 0.0
     first_correct: bool = False
+    first_pair_correct: bool = False
+    teammates_placed: int = 0  # by the alignment it holds
     inbox_new: list[str] = field(default_factory=list)
 
 
@@ -108,7 +111,8 @@ class Simulation:
             c_true = tuple(float(v) for v in slam.true_to_map(np.array(self.center_world)))
             c_given = (c_true[0] + errors[n][0], c_true[1] + errors[n][1])
             phase = float(phase_rng.uniform(0.0, sc.slam.publish_period_s))
-            self.robots[n] = Robot(n, trajs[n], slam, TeamMerger(n, tuple(self.robot_names), params), c_given,
+            tm = TeamMerger(n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps)
+            self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase)
         self.centers_given = {n: r.center_given for n, r in self.robots.items()}
@@ -193,11 +197,20 @@ class Simulation:
         found_t = {k: top.translation(k) for k in top.theta_deg}
         errors, t_errors, correct = judge_placement(top.theta_deg, found_t, truth, truth_t, m.correct_tol_deg,
                                                     m.correct_tol_m)
-        first = res.accepted and correct and not r.first_correct
+        complete = len(top.theta_deg) == len(r.merger.team)
+        first = res.accepted and correct and complete and not r.first_correct
         r.first_correct |= first
+        first_pair = res.accepted and correct and not r.first_pair_correct
+        r.first_pair_correct |= first_pair
+        if res.accepted:
+            r.teammates_placed = sum(1 for k in top.theta_deg if k != r.name
+                                     and errors[k] <= m.correct_tol_deg + JUDGE_EPS_DEG
+                                     and t_errors[k] <= m.correct_tol_m + JUDGE_EPS_M)
         self._emit("on_merge_cycle", MergeCycle(t, r.name, trigger, res, truth, correct, errors, first,
                                                 res.accepted and not correct, truth_translation_m=truth_t,
-                                                translation_error_m=t_errors))
+                                                translation_error_m=t_errors, complete=complete,
+                                                first_pair_correct=first_pair,
+                                                teammates_placed=r.teammates_placed))
 
     def run(self) -> RunResult:
         """Run to ``duration_s``. Ctrl-C stops the run at the end of the current tick (so every observer

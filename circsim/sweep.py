@@ -231,6 +231,8 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     for name, r in robots.items():
         row[f"first_merge_s.{name}"] = r["first_merge_s"]
         row[f"first_merge_arc_deg.{name}"] = r["first_merge_arc_deg"]
+        row[f"first_pair_merge_s.{name}"] = r.get("first_pair_merge_s")
+        row[f"teammates_placed_final.{name}"] = r.get("teammates_placed_final")
     merged = [r for r in robots.values() if r["first_merge_s"] is not None]
     row["robots_merged"] = len(merged)
     row["first_merge_s.mean"] = statistics.fmean(r["first_merge_s"] for r in merged) if merged else None

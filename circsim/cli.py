@@ -1,17 +1,32 @@
 """Command line: ``circsim run | scenarios | view`` (and the experiment commands).
 
 A user's mistake (bad scenario, bad argument, missing file) prints one line ``circsim: error: ...``
-and exits with 2; whatever was already computed or recorded is kept.
+and exits with 2, before any work and with nothing written; whatever was already computed or recorded
+is kept. SIGTERM is handled as Ctrl-C (``circsim run`` stops at the end of the tick and completes its
+recording, JSON and maps; a sweep stops its workers and writes its tables), exit code 143. Outputs are
+written atomically (temporary file, then rename): a reader never sees half a file.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
-from .scenario import Scenario, ScenarioError, bundled_scenarios, load_scenario
+# the scenario module (numpy, OpenCV, the merger) is imported inside main: a Ctrl-C while it loads is
+# then one line, not a traceback
+
+
+def __getattr__(name):  # ``from circsim.cli import Scenario`` etc. still work
+    if name in ("Scenario", "ScenarioError", "bundled_scenarios", "load_scenario"):
+        from . import scenario
+
+        return getattr(scenario, name)
+    raise AttributeError(name)
 
 
 class UsageError(Exception):
@@ -25,6 +40,8 @@ class _Parser(argparse.ArgumentParser):
 
 def resolve_scenario(arg: str) -> Path:
     """A scenario file path, or the name of a bundled scenario (``scene1``)."""
+    from .scenario import bundled_scenarios
+
     p = Path(arg)
     if p.exists():
         return p
@@ -34,7 +51,10 @@ def resolve_scenario(arg: str) -> Path:
     raise UsageError(f"{arg}: no such scenario file (bundled scenarios: {', '.join(bundled)})")
 
 
-def load_with_overrides(arg: str, seed: int | None, sets: list[str]) -> Scenario:
+def load_with_overrides(arg: str, seed: int | None, sets: list[str]):
+    """The scenario ``arg`` (file or bundled name) with ``--set`` assignments and ``--seed`` applied."""
+    from .scenario import load_scenario
+
     sc = load_scenario(resolve_scenario(arg))
     assignments = list(sets or [])
     if seed is not None:
@@ -57,6 +77,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", type=Path, metavar="OUT.json", help="write the run's metrics as JSON")
     r.add_argument("--rrd", type=Path, metavar="RUN.rrd", help="record the run to a rerun file")
     r.add_argument("--spawn", action="store_true", help="stream the run to a live rerun viewer")
+    r.add_argument("--save-maps", type=Path, metavar="DIR",
+                   help="write every robot's last published map as ROS map_server files (DIR/<robot>.yaml/.pgm) "
+                        "and DIR/centers.yaml: each map's center (given and true), the robots' start poses, the "
+                        "ground truth onto the first robot's map and the `merger merge` command that merges them")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     sub.add_parser("scenarios", help="list the bundled scenarios")
     v = sub.add_parser("view", help="open a recorded run (.rrd) in the rerun viewer")
@@ -74,7 +98,7 @@ def extra_commands():
     return experiments_cli.REGISTER
 
 
-def progress_observer(sc: Scenario, quiet: bool):
+def progress_observer(sc, quiet: bool):
     from .events import Observer
 
     if quiet or not sys.stderr.isatty():
@@ -120,16 +144,25 @@ def summary(res) -> str:
 
 
 def _writable(path: Path, what: str) -> None:
-    """Fail before the run, in one line, if ``path`` cannot be written (its folder is made)."""
+    """Fail before the run, in one line, if ``path`` cannot be written (its folder is made; the file itself
+    is not created: a run that stops early leaves no empty file)."""
+    import os
+    import tempfile
+
+    if path.is_dir():
+        raise UsageError(f"{path}: cannot write the {what} here (a folder has that name)")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "ab"):
-            pass
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        os.close(fd)
+        os.unlink(probe)
     except OSError as e:
         raise UsageError(f"{path}: cannot write the {what} here ({e.strerror or e})") from None
 
 
 def cmd_run(args) -> int:
+    from merger.mapio import MapFileError, ensure_output_dir, write_files
+
     from .sim import Simulation
 
     sc = load_with_overrides(args.scenario, args.seed, args.set)
@@ -143,33 +176,58 @@ def cmd_run(args) -> int:
         _writable(rrd, "recording")
     if json_out:
         _writable(json_out, "metrics JSON")
+    if args.save_maps:
+        ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
+    from .savemaps import MapSaver
+
+    saver = MapSaver() if args.save_maps else None
+    if saver:
+        observers.append(saver)
     if rrd or args.spawn:
         from .record import RerunRecorder
 
         observers.append(RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn,
                                        scan_log_hz=sc.output.scan_log_hz,
                                        merged_log_period_s=sc.output.merged_log_period_s))
+    begin_work()
     res = Simulation(sc, observers).run()
     if rrd:
         res.outputs["rrd"] = str(rrd)
     if json_out:
         res.outputs["json"] = str(json_out)
+    if saver:
+        res.outputs["maps"] = str(args.save_maps)
     print(summary(res))  # first: whatever happens to the files, the figures are on screen
     if rrd:
         print(f"recording: {rrd}   (view it: circsim view {rrd})")
+    failed = False
+    if saver:
+        try:
+            files = saver.files(args.save_maps)
+            write_files(files)
+            print(f"maps:      {len(saver.grids)} robots' last maps and "
+                  f"{args.save_maps / 'centers.yaml'} in {args.save_maps}" if files else
+                  "maps:      no map was published; nothing written")
+        except MapFileError as e:
+            print(f"circsim: error: --save-maps: {e}; the run's figures are above", file=sys.stderr)
+            failed = True
     if json_out:
         try:
-            json_out.write_text(json.dumps(res.to_dict(), indent=2))
-        except OSError as e:
-            print(f"circsim: error: {json_out}: cannot write the metrics JSON ({e.strerror or e}); "
+            write_files({json_out: json.dumps(res.to_dict(), indent=2).encode()})
+            print(f"metrics:   {json_out}")
+        except MapFileError as e:
+            print(f"circsim: error: {json_out}: cannot write the metrics JSON ({e}); "
                   f"the run's figures are above", file=sys.stderr)
-            return 2
-        print(f"metrics:   {json_out}")
-    return 130 if res.interrupted else 0
+            failed = True
+    if failed:
+        return 2
+    return interrupted_code() if res.interrupted else 0
 
 
 def cmd_scenarios(args) -> int:
+    from .scenario import ScenarioError, bundled_scenarios, load_scenario
+
     for name, path in bundled_scenarios().items():
         try:
             sc = load_scenario(path)
@@ -182,27 +240,96 @@ def cmd_scenarios(args) -> int:
 def cmd_view(args) -> int:
     from .record import view
 
+    begin_work()
     return view(args.rrd, web=args.web)
 
 
 COMMANDS = {"run": cmd_run, "scenarios": cmd_scenarios, "view": cmd_view}
 
 
+_TERMINATED = []  # a SIGTERM arrived (the exit code is then 143, 128 + SIGTERM)
+_STATE = {"starting": False, "sigint_ignored_at_start": False, "own_sigint": False}
+
+
+def _stop_starting(signum, frame) -> None:
+    """A signal while circsim starts (modules loading, scenario checked; nothing written yet): one line and
+    out at once. Raising KeyboardInterrupt here could land in an import's cleanup callback, where Python
+    prints a traceback and swallows it."""
+    term = signum == signal.SIGTERM
+    sys.stderr.write("circsim: terminated\n" if term else "circsim: interrupted\n")
+    sys.stderr.flush()
+    os._exit(143 if term else 130)
+
+
+def _sigterm_as_ctrl_c(signum, frame) -> None:
+    """SIGTERM does what Ctrl-C does at this moment: the run's handler (stop at the end of the tick; a
+    second one interrupts at once), or KeyboardInterrupt. While SIGINT is ignored for a moment (the
+    recorder writing the .rrd footer) it is ignored too; the run is ending anyway."""
+    if _STATE["starting"]:
+        _stop_starting(signum, frame)
+    _TERMINATED.append(signum)
+    h = signal.getsignal(signal.SIGINT)
+    if h is signal.SIG_IGN and not _STATE["sigint_ignored_at_start"]:
+        return
+    if callable(h) and h is not signal.default_int_handler:
+        h(signal.SIGINT, frame)
+        return
+    raise KeyboardInterrupt
+
+
+def begin_work() -> None:
+    """Called by a command when its work begins (the run, the sweep's pool): from here Ctrl-C and SIGTERM
+    stop the work and keep what it produced (KeyboardInterrupt, or the run's tick-boundary handler)."""
+    _STATE["starting"] = False
+    if _STATE["own_sigint"] and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _STATE["own_sigint"] = False
+
+
 def main(argv=None) -> int:
+    saved = {}
+    _TERMINATED.clear()
+    if threading.current_thread() is threading.main_thread():
+        _STATE["sigint_ignored_at_start"] = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+        saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            saved[signal.SIGINT] = signal.signal(signal.SIGINT, _stop_starting)
+            _STATE["own_sigint"] = True
+        _STATE["starting"] = True
+    try:
+        return _main(argv)
+    finally:
+        _STATE.update(starting=False, own_sigint=False)
+        for sig, h in saved.items():
+            signal.signal(sig, h)
+
+
+def _main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         fn = COMMANDS.get(args.cmd) or args.func
         return fn(args)
-    except (UsageError, ScenarioError, FileNotFoundError, ValueError) as e:
-        print(f"circsim: error: {e}", file=sys.stderr)
-        return 2
-    except OSError as e:  # a file the user named cannot be read or written
-        print(f"circsim: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
-        print("circsim: interrupted", file=sys.stderr)
-        return 130
+        print("circsim: terminated" if _TERMINATED else "circsim: interrupted", file=sys.stderr)
+        return 143 if _TERMINATED else 130
+    except Exception as e:
+        from .scenario import ScenarioError
+
+        if isinstance(e, UsageError | ScenarioError | FileNotFoundError | ValueError):
+            print(f"circsim: error: {e}", file=sys.stderr)
+            return 2
+        if isinstance(e, OSError):  # a file the user named cannot be read or written
+            print(f"circsim: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+            return 2
+        raise
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def interrupted_code() -> int:
+    """Exit code of a command stopped early: 143 after SIGTERM, 130 after Ctrl-C."""
+    return 143 if _TERMINATED else 130
+
+
+if __name__ == "__main__":  # run the imported module's main: experiments_cli's begin_work must see its state
+    from circsim import cli
+
+    sys.exit(cli.main())

@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from merger.mapio import ensure_output_dir
+from merger.mapio import ensure_output_dir, write_files
 
 
 def _scenario_args(p) -> None:
@@ -56,12 +56,13 @@ def register_offline(sub) -> None:
 
 
 def cmd_offline(args) -> int:
-    from .cli import load_with_overrides
+    from .cli import begin_work, load_with_overrides
     from .offline import OfflineSettings
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     if args.seeds < 1:
         raise ValueError(f"--seeds: expected an integer >= 1, got {args.seeds}")
+    check_offline_args(args)
     settings = OfflineSettings(methods=methods, max_deg=args.max_deg, step_deg=args.step_deg,
                                scans_per_pose=args.scans_per_pose, others=args.others, drift=args.drift,
                                ncc_score_min=args.score_min, search_method=args.search_method, full=args.full)
@@ -69,9 +70,29 @@ def cmd_offline(args) -> int:
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
     if args.out:
         ensure_output_dir(args.out, "--out")
+    begin_work()
     if args.calibrate:
         return _calibrate(scenarios, settings, args)
     return _offline(scenarios, settings, args)
+
+
+def check_offline_args(args) -> None:
+    """One-line errors for the numbers of ``circsim offline`` (NaN and infinities included)."""
+    import math
+
+    def finite(v):
+        return v is not None and math.isfinite(v)
+
+    if args.max_deg is not None and not (finite(args.max_deg) and 0 < args.max_deg <= 180):
+        raise ValueError(f"--max-deg: expected a number of degrees in (0, 180], got {args.max_deg:g}")
+    if args.step_deg is not None and not (finite(args.step_deg) and 0 < args.step_deg <= 180):
+        raise ValueError(f"--step-deg: expected a number of degrees in (0, 180], got {args.step_deg:g}")
+    if args.max_deg is not None and args.step_deg is not None and args.step_deg > args.max_deg:
+        raise ValueError(f"--step-deg: expected at most --max-deg ({args.max_deg:g}), got {args.step_deg:g}")
+    if not (finite(args.score_min) and -1 <= args.score_min <= 1):
+        raise ValueError(f"--score-min: expected an NCC coefficient in [-1, 1], got {args.score_min:g}")
+    if args.scans_per_pose < 1:
+        raise ValueError(f"--scans-per-pose: expected an integer >= 1, got {args.scans_per_pose}")
 
 
 def _offline(scenarios, settings, args) -> int:
@@ -79,6 +100,7 @@ def _offline(scenarios, settings, args) -> int:
 
     from merger.mapio import save_map
 
+    from .cli import interrupted_code
     from .offline import default_search_method, format_table, run_offline, summarize
 
     search = settings.search_method or default_search_method()
@@ -123,7 +145,7 @@ def _offline(scenarios, settings, args) -> int:
               f"{records_path}")
     if interrupted:
         print("circsim: interrupted; the table holds the scenes and seeds that finished", file=sys.stderr)
-        return 130
+        return interrupted_code()
     return 0
 
 
@@ -147,8 +169,9 @@ def save_first_merge(r, path: Path, *, margin_cells: int = 10, scale: int = 2) -
     img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     cv2.putText(img, f"{r.scene} {r.method} +-{r.first_correct_phi_deg:g} deg (seed {r.seed})", (6, 18),
                 cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), img)
+    ok, png = cv2.imencode(".png", img)
+    if ok:
+        write_files({path: png.tobytes()})
     return path
 
 
@@ -161,8 +184,8 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
     write_csv([r.to_dict() for r in seed_results], out / "offline_seeds.csv")
     meta = {"command": "circsim " + " ".join(sys.argv[1:]) if sys.argv else "", "settings": asdict(settings),
             "search_method": search, "scenarios": args.scenarios, "seeds": args.seeds, "set": args.set}
-    (out / "offline.json").write_text(json.dumps(
-        {"meta": meta, "summary": rows, "per_seed": [r.to_dict() for r in seed_results]}, indent=2))
+    write_files({out / "offline.json": json.dumps(
+        {"meta": meta, "summary": rows, "per_seed": [r.to_dict() for r in seed_results]}, indent=2).encode()})
 
 
 def _calibrate(scenarios, settings, args) -> int:
@@ -179,7 +202,8 @@ def _calibrate(scenarios, settings, args) -> int:
           f"{cal['max_wrong_angle_score']:.3f}; proposed --score-min {cal['threshold']:g} "
           f"({cal['correct_at_or_above']} of {cal['correct_best']} right alignments reach it)")
     if args.out:
-        (args.out / "ncc_calibration.json").write_text(json.dumps({"calibration": cal, "hypotheses": rows}))
+        write_files({args.out / "ncc_calibration.json":
+                     json.dumps({"calibration": cal, "hypotheses": rows}).encode()})
     return 0
 
 
@@ -205,9 +229,10 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import load_with_overrides
+    from .cli import begin_work, interrupted_code, load_with_overrides
     from .sweep import (
         SweepError,
+        check_dask,
         execute,
         format_summary,
         parse_grid,
@@ -220,12 +245,15 @@ def cmd_sweep(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
+    if args.dask:
+        check_dask()
     base = load_with_overrides(args.scenario, args.seed, args.set)
     axes = parse_grid(args.grid)
     tasks = plan(base, axes, args.seeds)
     if args.out:
         ensure_output_dir(args.out, "--out")
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
+    begin_work()
     if base.merger.method == "reference" and todo and not args.quiet:
         print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "
               "--set merger.method=fast is ~100x faster", file=sys.stderr)
@@ -252,7 +280,7 @@ def cmd_sweep(args) -> int:
     if interrupted:
         print(f"circsim: interrupted; {len(rows)} of {len(tasks)} runs are in {args.out / 'runs.jsonl'} "
               "(--resume continues)", file=sys.stderr)
-        return 130
+        return interrupted_code()
     if failed:
         print(f"circsim: {failed} runs failed (tracebacks in {args.out / 'errors.jsonl'}; --resume retries them)",
               file=sys.stderr)

@@ -277,27 +277,108 @@ def read_rows(path: Path) -> list[dict]:
     return rows
 
 
+SWEEP_JSON = "sweep.json"
+
+
+def _leaves(d, prefix: str = "") -> dict:
+    """Nested data as ``{"a.b": value}`` (lists as JSON text) for naming differences."""
+    if not isinstance(d, dict):
+        return {prefix: json.dumps(d, sort_keys=True, default=str)}
+    out = {}
+    for k, v in d.items():
+        out.update(_leaves(v, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+def _differences(was: dict, now: dict, most: int = 3) -> str:
+    a, b = _leaves(was), _leaves(now)
+    keys = [k for k in dict.fromkeys([*a, *b]) if a.get(k) != b.get(k)]
+    parts = [f"{k}: {a.get(k, '(unset)')} then, {b.get(k, '(unset)')} now" for k in keys[:most]]
+    return "; ".join(parts) + (f"; and {len(keys) - most} more" if len(keys) > most else "")
+
+
+def _sweep_identity(tasks: list[RunTask]) -> dict:
+    """What makes rows of one experiment: the base scenario after ``--set`` (seed left out)."""
+    raw = tasks[0].raw
+    return {"scenario": tasks[0].source, "base": {k: v for k, v in raw.items() if k != "seed"},
+            "digest": base_digest(raw)}
+
+
 def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: bool) -> tuple[list[RunTask], int]:
-    """The tasks still to run, and how many were already done (``--resume``)."""
+    """The tasks still to run, and how many were already done (``--resume``).
+
+    The folder's ``sweep.json`` records the base scenario (with ``--set`` applied) of the sweep its rows
+    belong to; resuming with another (a different ``--set`` or scenario file) would mix two experiments in
+    runs.jsonl, so it is refused with the differences named."""
+    from merger.mapio import write_files
+
     out.mkdir(parents=True, exist_ok=True)
     path = out / RUNS_JSONL
-    done = {r.get("run_key") for r in read_rows(path)}
+    rows = read_rows(path)
+    done = {r.get("run_key") for r in rows}
     if done and not resume and not overwrite:
         raise SweepError(f"{path} already holds {len(done)} runs; pass --resume to continue that sweep "
                          "or --overwrite to start again")
+    ident = _sweep_identity(tasks)
+    if resume and done:
+        _check_same_sweep(out, rows, ident)
     if overwrite and not resume:
         path.write_text("")
         (out / ERRORS_JSONL).unlink(missing_ok=True)  # the old sweep's failures are not this one's
         done = set()
+    write_files({out / SWEEP_JSON: json.dumps(ident, indent=1, sort_keys=True, default=str).encode()})
     todo = [t for t in tasks if t.key not in done]
     return todo, len(tasks) - len(todo)
 
 
+def _check_same_sweep(out: Path, rows: list[dict], ident: dict) -> None:
+    """``--resume`` continues the sweep in ``out`` only: refuse other base scenarios, naming what differs."""
+    try:
+        was = json.loads((out / SWEEP_JSON).read_text())
+    except (OSError, ValueError):
+        was = None
+    if isinstance(was, dict) and "digest" in was:
+        if was["digest"] != ident["digest"]:
+            raise SweepError(f"--resume: {out} holds a sweep of another scenario or --set values "
+                             f"({_differences(was.get('base', {}), ident['base'])}); resume it with the same "
+                             "scenario and --set, or use another --out (or --overwrite)")
+        return
+    digests = set()  # a folder from before sweep.json: the run keys carry the base digest
+    for r in rows:
+        try:
+            digests.add(json.loads(r["run_key"]).get("base"))
+        except (KeyError, TypeError, ValueError, AttributeError):
+            continue
+    if digests and ident["digest"] not in digests:
+        raise SweepError(f"--resume: the runs in {out / RUNS_JSONL} are of another scenario or --set values; "
+                         "resume with the same scenario and --set, or use another --out (or --overwrite)")
+
+
 # --- execution -------------------------------------------------------------------------------------
-def _init_worker() -> None:
+PARENT_POLL_S = 0.5
+
+
+def _exit_with_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
+    """In a worker: a daemon thread that ends the process once its parent is gone (killed with SIGKILL,
+    or a SIGTERM that did not reach the pool), instead of running orphaned runs to the end. The parent
+    is gone when this process is re-parented (``os.getppid()`` changes)."""
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def _init_worker(parent_pid: int | None = None) -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it stops the pool)
+    if parent_pid is not None:
+        _exit_with_parent(parent_pid)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
         import cv2
@@ -322,7 +403,8 @@ def _local(tasks: list[RunTask], workers: int):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     ctx = multiprocessing.get_context("spawn")  # no fork of a parent holding threads (tqdm, OpenCV)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                               initargs=(os.getpid(),))
     futures = {pool.submit(run_one, t): t for t in tasks}
     try:
         for f in as_completed(futures):
@@ -339,7 +421,17 @@ def _local(tasks: list[RunTask], workers: int):
 DASK_CONNECT_TIMEOUT_S = 15
 
 
+def check_dask() -> None:
+    """``--dask`` needs dask.distributed (the ``sweep`` extra): a one-line error naming it otherwise."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise SweepError("--dask: dask.distributed is not installed; install the sweep extra: "
+                         "pip install 'circsim[sweep]'") from None
+
+
 def _dask(tasks: list[RunTask], address: str):
+    check_dask()
     from distributed import Client, as_completed
 
     try:
@@ -458,17 +550,19 @@ def _columns(rows: list[dict]) -> list[str]:
 
 def write_csv(rows: list[dict], path: Path) -> None:
     """Rows as CSV: columns are the union of their keys in first-seen order; None is empty, lists and
-    dicts are JSON; no rows, an empty file."""
-    if not rows:
-        path.write_text("")
-        return
-    cols = _columns(rows)
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols, restval="")
+    dicts are JSON; no rows, an empty file. Written atomically (temporary file, then rename)."""
+    import io
+
+    from merger.mapio import write_files
+
+    f = io.StringIO(newline="")
+    if rows:
+        w = csv.DictWriter(f, fieldnames=_columns(rows), restval="")
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if v is None else json.dumps(v) if isinstance(v, list | dict) else v)
                         for k, v in r.items()})
+    write_files({path: f.getvalue().encode()})  # atomic: a reader never sees half a table
 
 
 def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]:
@@ -484,7 +578,9 @@ def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]
         return paths
     cols = _columns(rows)
     table = pa.Table.from_pylist([{c: r.get(c) for c in cols} for r in rows])
-    pq.write_table(table, out / RUNS_PARQUET)
+    tmp = out / f".{RUNS_PARQUET}.part"
+    pq.write_table(table, tmp)
+    os.replace(tmp, out / RUNS_PARQUET)
     paths.append(out / RUNS_PARQUET)
     return paths
 

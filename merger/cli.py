@@ -245,7 +245,7 @@ def merge_command(paths, centers, out, params: MergeParams | None = None) -> str
 
     words = ["merger", "merge", *(str(p) for p in paths)]
     for x, y in centers:
-        words += ["--center", f"{x:.6f},{y:.6f}"]
+        words += ["--center", f"{round(x, 6) + 0.0:.6f},{round(y, 6) + 0.0:.6f}"]  # no "-0.000000"
     d = MergeParams()
     for opt, key in (("--roi", "roi_m"), ("--measure", "measure"), ("--method", "method"),
                      ("--window", "window_m"), ("--nu-min", "nu_min"), ("--min-support", "min_support")):

@@ -206,7 +206,7 @@ def centers_yaml(maps: dict[str, dict], truth: dict[str, tuple] | None, command:
     doc = {"note": note, "maps": maps}
     if truth is not None:
         doc["truth_onto"] = first
-        doc["truth"] = {n: {"theta_deg": round(float(th), 6), "translation_m": [round(float(v), 6) for v in t]}
+        doc["truth"] = {n: {"theta_deg": round(float(th), 6), "translation_m": [round(float(v), 6) + 0.0 for v in t]}
                         for n, (th, t) in truth.items()}
     doc["merge_command"] = command
     return yaml.safe_dump(_plain(doc), default_flow_style=None, sort_keys=False, allow_unicode=True,

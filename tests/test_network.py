@@ -48,7 +48,7 @@ def test_jitter_reorders_and_never_arrives_before_sending():
     sent = [n.send("a", "b", k, now=k * 0.1) for k in range(300)]
     assert all(m.arrive_s >= m.sent_s for m in sent)
     delays = np.array([m.arrive_s - m.sent_s for m in sent])
-    assert (delays == 0).any()  # clipped at zero
+    assert delays.min() >= 0.05 - 1e-12  # jitter only adds to the latency
     out = n.deliver("b", 1e9)
     arrivals = [m.arrive_s for m in out]
     assert arrivals == sorted(arrivals)
@@ -62,3 +62,19 @@ def test_same_seed_same_deliveries():
             n.broadcast("a", ["a", "b", "c"], k, now=k * 0.5)
         return [(m.payload, m.arrive_s) for r in "bc" for m in n.deliver(r, 1e9)]
     assert run(3) == run(3) != run(4)
+
+
+def test_jitter_only_adds_delay_half_normal():
+    """Issue 12: with jitter, no message arrives sooner than the latency; the extra delay is half-normal
+    of scale jitter_s (mean jitter·√(2/π)), so more jitter means later maps, never earlier ones."""
+    latency, jitter, k = 1.0, 0.4, 20000
+    n = net(seed=5, latency_s=latency, jitter_s=jitter)
+    extra = np.array([n.send("a", "b", i, now=0.0).arrive_s - latency for i in range(k)])
+    assert extra.min() >= 0.0
+    assert extra.mean() == pytest.approx(jitter * np.sqrt(2 / np.pi), rel=0.03)
+    assert np.median(extra) == pytest.approx(jitter * 0.6745, rel=0.04)
+    means = []
+    for j in (0.0, 0.2, 0.8):  # the same draws: mean delay grows with jitter
+        m = net(seed=5, latency_s=latency, jitter_s=j)
+        means.append(np.mean([m.send("a", "b", i, now=0.0).arrive_s for i in range(2000)]))
+    assert means[0] == pytest.approx(latency) and means[0] < means[1] < means[2]

@@ -161,3 +161,102 @@ def test_a_changed_base_scenario_is_not_resumed_as_finished():
     digest = {json.loads(k)["base"] for k in keys}
     assert len(digest) == 1 and {json.loads(t.key)["base"] for t in reseeded} == digest  # seeds are per run
     assert sorted({t.seed for t in reseeded}) == [5, 6]
+
+
+# --- issue 12: resume of another sweep, the dask extra, workers outliving their parent, SIGTERM ---------
+def test_resume_with_other_set_values_is_refused_naming_the_difference(tmp_path, capsys):
+    out = tmp_path / "sw"
+    args = ["sweep", "scene1", "--seeds", "1", "--out", str(out), "--quiet", "--workers", "1", "--no-plots",
+            *[x for s in SETS for x in ("--set", s)]]
+    assert main(args) == 0
+    rows_before = (out / RUNS_JSONL).read_text()
+    csv_before = (out / "runs.csv").read_text()
+    capsys.readouterr()
+    assert main([*args, "--set", "merger.nu_min=0.7", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--resume" in err and "merger.nu_min: 0.5 then, 0.7 now" in err, err
+    assert (out / RUNS_JSONL).read_text() == rows_before and (out / "runs.csv").read_text() == csv_before
+    # a folder from before sweep.json: the run keys' digests still tell
+    (out / "sweep.json").unlink()
+    assert main([*args, "--set", "merger.nu_min=0.7", "--resume"]) == 2
+    assert "another scenario or --set values" in capsys.readouterr().err
+    assert main([*args, "--resume"]) == 0  # the same sweep resumes
+    assert "1 already done, 0 to run" in capsys.readouterr().err
+
+
+def test_dask_without_the_sweep_extra_names_it(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed → ImportError
+    args = ["sweep", "scene1", "--seeds", "1", "--out", str(tmp_path / "sw"), "--quiet", "--dask", "tcp://x:1",
+            *[x for s in SETS for x in ("--set", s)]]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'circsim[sweep]'" in err and "--dask" in err
+    assert not (tmp_path / "sw").exists()
+
+
+def _children(pid: int) -> set[int]:
+    import os
+
+    out = set()
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.add(int(d))
+            except (OSError, IndexError, ValueError):
+                continue
+    return out
+
+
+def _alive(pid: int) -> bool:
+
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not __import__("os").path.isdir("/proc"), reason="reads /proc")
+@pytest.mark.parametrize("how", ["SIGKILL", "SIGTERM"])
+def test_pool_workers_exit_when_the_sweep_parent_dies(tmp_path, how):
+    """Killing the sweep's parent leaves no worker running orphaned runs (SIGKILL: the workers notice
+    their parent is gone; SIGTERM: handled as Ctrl-C, the pool is stopped and the tables written)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "sw"
+    cmd = [sys.executable, "-m", "circsim.cli", "sweep", "scene1", "--seeds", "4", "--out", str(out), "--quiet",
+           "--workers", "2", "--no-plots", "--set", f"merger.method={default_search_method()}",
+           "--set", "duration_s=120"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t0 = time.monotonic()
+        workers: set[int] = set()
+        while len(workers) < 2 and time.monotonic() - t0 < 120 and proc.poll() is None:
+            time.sleep(0.2)  # the two pool workers (and multiprocessing's resource tracker)
+            workers = {p for p in _children(proc.pid) if "spawn_main" in open(f"/proc/{p}/cmdline").read()}
+        assert len(workers) == 2, proc.communicate()
+        time.sleep(1.0)
+        os.kill(proc.pid, getattr(signal, how))
+        proc.communicate(timeout=60)
+        t1 = time.monotonic()
+        while any(_alive(p) for p in workers) and time.monotonic() - t1 < 15:
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in workers), "pool workers outlived their parent"
+        if how == "SIGTERM":
+            assert proc.returncode == 143  # 128 + SIGTERM
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for p in _children(proc.pid):
+            try:
+                os.kill(p, signal.SIGKILL)
+            except OSError:
+                pass

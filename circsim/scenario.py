@@ -168,6 +168,8 @@ class MergerSettings:
         when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
         holds, a partial team; null or more than the team: only with every teammate's map).
+    strategy : "orders" (the thesis: every merge order of the maps held) or "tree" (pairwise alignments
+        kept per map version, the team assembled along a maximum spanning tree of the verified pairs).
     """
 
     roi_m: float = 8.0
@@ -183,6 +185,7 @@ class MergerSettings:
     correct_tol_m: float = 0.1
     ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
     min_maps: int | None = 2
+    strategy: str = "orders"
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -331,7 +334,8 @@ _MERGER = section(MergerSettings, {
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
-    "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2))})
+    "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),
+    "strategy": choice("orders", "tree")})
 _OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
                                "merged_log_period_s": optional(_NONNEG)})
 _TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",

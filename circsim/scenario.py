@@ -167,7 +167,8 @@ class MergerSettings:
     correct_tol_deg, correct_tol_m : ground truth, not merger parameters: an accepted alignment is correct
         when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
-        holds, a partial team; null or more than the team: only with every teammate's map).
+        holds, a partial team; null, the default, or more than the team: only with every teammate's map,
+        as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
     strategy : "orders" (the thesis: every merge order of the maps held) or "tree" (pairwise alignments
         kept per map version, the team assembled along a maximum spanning tree of the verified pairs).
     """
@@ -184,7 +185,7 @@ class MergerSettings:
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
     ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
-    min_maps: int | None = 2
+    min_maps: int | None = None
     strategy: str = "orders"
 
     def as_dict(self) -> dict[str, Any]:

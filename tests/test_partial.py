@@ -25,7 +25,7 @@ def test_lossy_network_robot_with_two_of_three_maps_merges_the_pair():
     """90% loss: every robot holds only one teammate's map for the whole run. With min_maps 2 it merges
     that pair correctly (no full merge, no false merge); with the whole team required it never merges."""
     obs = Cycles()
-    res = Simulation(scene("scene1", "duration_s=20", "network.loss=0.9"), [obs]).run()
+    res = Simulation(scene("scene1", "duration_s=20", "network.loss=0.9", "merger.min_maps=2"), [obs]).run()
     assert res.false_merges == 0
     for name, r in res.robots.items():
         assert r.first_merge_s is None and r.first_pair_merge_s is not None, name
@@ -36,7 +36,7 @@ def test_lossy_network_robot_with_two_of_three_maps_merges_the_pair():
         assert not c.first_correct
     d = res.to_dict()["robots"]["Lyon"]
     assert d["teammates_placed_final"] == 1 and d["first_pair_merge_s"] == res.robots["Lyon"].first_pair_merge_s
-    whole = Simulation(scene("scene1", "duration_s=20", "network.loss=0.9", "merger.min_maps=null")).run()
+    whole = Simulation(scene("scene1", "duration_s=20", "network.loss=0.9")).run()  # default: whole team
     assert all(r.cycles == 0 and r.first_pair_merge_s is None and r.teammates_placed == []
                for r in whole.robots.values())
 
@@ -88,7 +88,8 @@ def test_recording_shows_pair_merges_and_teammates_placed(tmp_path):
 
     rrd, js = tmp_path / "lossy.rrd", tmp_path / "lossy.json"
     assert main(["run", "scene1", "--set", "duration_s=10", "--set", "network.loss=0.9", "--set",
-                 "merger.method=fast", "--rrd", str(rrd), "--json", str(js), "--quiet"]) == 0
+                 "merger.method=fast", "--set", "merger.min_maps=2", "--rrd", str(rrd), "--json", str(js),
+                 "--quiet"]) == 0
     rec, d = read_recording(rrd), json.loads(js.read_text())
     for n, m in d["robots"].items():
         assert m["first_pair_merge_s"] is not None and m["first_merge_s"] is None

@@ -25,7 +25,7 @@ import numpy as np
 import yaml
 
 from merger.cli import MAX_ROI_M
-from merger.mapio import load_yaml
+from merger.mapio import load_yaml, one_line
 from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
@@ -56,7 +56,11 @@ SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 
 class ScenarioError(ValueError):
-    """A scenario that cannot be used; the message is one line: file, key path, expectation."""
+    """A scenario that cannot be used; the message is one line: file, key path, expectation (control
+    characters of echoed user text escaped)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """merger — occupancy-grid map merging for robots that share a common center.
 
-Implements section 3.3 of the thesis (``shared/reference/thesis-3.3-map-merging.txt``): exhaustive
+Implements section 3.3 of the thesis ("Merging of Occupancy Grid Maps with Common Center"): exhaustive
 rotation search maximizing the modified similarity index ω̃ on a region of interest around the center,
 verification on the whole maps, three (in general N(N−1)/2) merge orders and the choice of the best
 verified one. Pure numpy/OpenCV: no I/O in the algorithms (file formats live in :mod:`merger.mapio`).

@@ -36,8 +36,20 @@ MAX_ORIGIN_M = 1e6  # a map origin a thousand kilometres away is a typo
 _PGM_RESOLUTION = re.compile(rb"#[^\n]*?([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*m/pix")
 
 
+_CONTROL = re.compile("[\x00-\x1f\x7f\x85\u2028\u2029]")
+
+
+def one_line(text: str) -> str:
+    """``text`` with line breaks and other control characters escaped (``\\n``): a user's file name or
+    value echoed in an error message cannot break it over lines."""
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], str(text))
+
+
 class MapFileError(ValueError):
-    """A map file that cannot be read as a ROS map_server map (message: ``file: problem``)."""
+    """A map file that cannot be read as a ROS map_server map (message: ``file: problem``, one line)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
 
 
 class Yaml12Loader(yaml.SafeLoader):
@@ -123,6 +135,9 @@ def read_image(path: Path, yaml_path: Path) -> np.ndarray:
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it, in one line
     try:
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error as e:  # e.g. a header declaring a size OpenCV refuses
+        msg = str(e).strip().splitlines()[-1] if str(e).strip() else "OpenCV error"
+        raise MapFileError(f"{path}: not a readable image ({msg.split('error: ')[-1]})") from None
     finally:
         cv2.utils.logging.setLogLevel(level)
     if img is None:

@@ -81,8 +81,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write every robot's last published map as ROS map_server files (DIR/<robot>.yaml/.pgm) "
                         "and DIR/centers.yaml: each map's center (given and true), the robots' start poses, the "
                         "ground truth onto the first robot's map and the `merger merge` command that merges them")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
-    sub.add_parser("scenarios", help="list the bundled scenarios")
+    r.add_argument("--quiet", action="store_true", help="no progress bar (shown on a terminal only)")
+    sc = sub.add_parser("scenarios", help="list the bundled scenarios (--show NAME: one in full)")
+    sc.add_argument("--show", metavar="SCENARIO", help="print a scenario (bundled name or file) with every key "
+                                                       "and its value, defaults filled in, as YAML")
     v = sub.add_parser("view", help="open a recorded run (.rrd) in the rerun viewer")
     v.add_argument("rrd", type=Path)
     v.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
@@ -98,10 +100,16 @@ def extra_commands():
     return experiments_cli.REGISTER
 
 
+def show_progress(quiet: bool) -> bool:
+    """The one rule for progress bars (run, offline, calibrate, sweep): on a terminal only, never with
+    --quiet; piped or redirected output stays free of bar redraws."""
+    return not quiet and sys.stderr.isatty()
+
+
 def progress_observer(sc, quiet: bool):
     from .events import Observer
 
-    if quiet or not sys.stderr.isatty():
+    if not show_progress(quiet):
         return None
     from tqdm import tqdm
 
@@ -226,8 +234,18 @@ def cmd_run(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
-    from .scenario import ScenarioError, bundled_scenarios, load_scenario
+    from .scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
 
+    if args.show:
+        import yaml
+
+        sc = load_scenario(resolve_scenario(args.show))
+        print(f"# {sc.source}, every key with its value (defaults filled in); ALIASES for --set/--grid: "
+              "center_error, latency, network.latency/jitter/period")
+        print(yaml.safe_dump({"name": sc.name, "description": sc.description, "seed": sc.seed,
+                              "duration_s": sc.duration_s, "dt_s": sc.dt_s, **scenario_to_dict(sc)},
+                             sort_keys=False, default_flow_style=None, allow_unicode=True, width=110), end="")
+        return 0
     for name, path in bundled_scenarios().items():
         try:
             sc = load_scenario(path)

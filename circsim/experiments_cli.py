@@ -19,7 +19,7 @@ def _scenario_args(p) -> None:
     p.add_argument("--seed", type=int, help="base seed (default: the scenario's); seed i is base + i")
     p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
                    help="override a scenario value for every run (repeatable)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar (shown on a terminal only)")
 
 
 # --- circsim offline ---------------------------------------------------------------------------------
@@ -100,14 +100,14 @@ def _offline(scenarios, settings, args) -> int:
 
     from merger.mapio import save_map
 
-    from .cli import interrupted_code
+    from .cli import interrupted_code, show_progress
     from .offline import default_search_method, format_table, run_offline, summarize
 
     search = settings.search_method or default_search_method()
     out: Path | None = args.out
     seed_results, records_path = [], (out / "offline_records.jsonl") if out else None
     rec_file = open(records_path, "w") if records_path else None
-    bar = tqdm(total=len(scenarios), unit="scene·seed", disable=args.quiet, desc="offline")
+    bar = tqdm(total=len(scenarios), unit="scene·seed", disable=not show_progress(args.quiet), desc="offline")
     interrupted = False
     try:
         for sc in scenarios:
@@ -191,10 +191,12 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
 def _calibrate(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
+    from .cli import show_progress
     from .offline import calibrated_threshold, ncc_calibration_rows
 
     rows = []
-    for sc in tqdm(scenarios, unit="scene·seed", disable=args.quiet, desc="calibrate"):
+    for sc in tqdm(scenarios, unit="scene·seed", disable=not show_progress(args.quiet),
+                   desc="calibrate"):
         rows += ncc_calibration_rows(sc, settings)
     cal = calibrated_threshold(rows)
     print(f"NCC calibration over {len(scenarios)} scene·seeds, {cal['alignments']} alignments "
@@ -229,7 +231,7 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import begin_work, interrupted_code, load_with_overrides
+    from .cli import begin_work, interrupted_code, load_with_overrides, show_progress
     from .sweep import (
         SweepError,
         check_dask,
@@ -263,7 +265,7 @@ def cmd_sweep(args) -> int:
     interrupted, failed = False, 0
     try:
         failed = execute(todo, args.out, workers=args.workers, dask_address=args.dask,
-                         progress=not args.quiet).failed
+                         progress=show_progress(args.quiet)).failed
     except KeyboardInterrupt:
         interrupted = True
     rows = sweep_rows(args.out, tasks)

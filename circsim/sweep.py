@@ -40,12 +40,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .events import Observer
-from .scenario import Scenario, ScenarioError, scenario_from_dict
+from .scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
 
-# DESIGN.md and the issue spell some keys without their unit; the scenario keys carry it.
-ALIASES = {"center_error": "center_error.magnitude_m", "network.latency": "network.latency_s",
-           "network.jitter": "network.jitter_s", "network.period": "network.period_s",
-           "latency": "network.latency_s"}
 RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV = "runs.jsonl", "runs.csv", "runs.parquet", "summary.csv"
 ERRORS_JSONL = "errors.jsonl"
 

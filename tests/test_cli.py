@@ -148,3 +148,29 @@ def test_sigterm_handler_is_restored_after_main(capsys):
     capsys.readouterr()
     assert signal.getsignal(signal.SIGTERM) is before
     assert os.getpid()  # the test process itself was not touched
+
+
+def test_scenarios_show_prints_every_key_and_loads_back(capsys):
+    from circsim.scenario import bundled_scenarios, load_scenario, scenario_from_dict
+
+    assert main(["scenarios", "--show", "scene1"]) == 0
+    text = capsys.readouterr().out
+    data = yaml.safe_load(text)
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    assert scenario_from_dict(data) == sc
+    for key in ("laser", "slam", "network", "merger", "output", "center_error"):
+        assert key in data
+    assert data["merger"]["window_m"] == 0 and "nu_min" in data["merger"] and "drift" in data["slam"]
+
+
+@pytest.mark.parametrize("assignment, path, value", [
+    ("center_error=0.05", ("center_error", "magnitude_m"), 0.05),
+    ("latency=0.5", ("network", "latency_s"), 0.5),
+    ("network.jitter=0.1", ("network", "jitter_s"), 0.1),
+    ("center_error={magnitude_m: 0.2}", ("center_error", "magnitude_m"), 0.2),  # the section itself
+])
+def test_set_accepts_the_grid_aliases(assignment, path, value):
+    from circsim.scenario import bundled_scenarios, load_scenario
+
+    sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides([assignment])
+    assert getattr(getattr(sc, path[0]), path[1]) == value

@@ -111,7 +111,8 @@ class Simulation:
             c_true = tuple(float(v) for v in slam.true_to_map(np.array(self.center_world)))
             c_given = (c_true[0] + errors[n][0], c_true[1] + errors[n][1])
             phase = float(phase_rng.uniform(0.0, sc.slam.publish_period_s))
-            tm = TeamMerger(n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps)
+            tm = TeamMerger(n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps,
+                            strategy=sc.merger.strategy)
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase)

@@ -1,9 +1,14 @@
 """Online merging state of one robot (thesis 3.3.1, online experiments).
 
 Each robot keeps the newest map of every teammate (and its own), tagged with the sender and a time
-stamp. Every new map triggers a merge cycle over all orders; an accepted hypothesis replaces the kept
-alignment, a rejected cycle never discards a good earlier one. A cycle reuses the robot's own earlier
-search of a pair of maps that has not changed since (the searches are deterministic: same result).
+stamp. Every new map triggers a merge cycle over the maps held (``min_maps`` of them at least: a
+partial team merges what it has); an accepted hypothesis replaces the kept alignment, a rejected cycle
+never discards a good earlier one. A cycle reuses the robot's own earlier search of a pair of maps that
+has not changed since (the searches are deterministic: same result).
+
+Two strategies: ``orders`` (the thesis: every merge order, :func:`merger.team.merge_team`) and ``tree``
+(pairwise alignments kept per map version, the team assembled along a maximum spanning tree of the
+verified pairs, :func:`merger.tree.merge_tree`).
 """
 
 from __future__ import annotations
@@ -12,6 +17,9 @@ from dataclasses import dataclass, field
 
 from .grid import OccupancyGrid
 from .team import MapInput, MergeParams, TeamMergeResult, merge_team
+from .tree import merge_tree
+
+STRATEGIES = ("orders", "tree")
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,7 +41,9 @@ class TeamMerger:
     self_name : the robot that merges; results are expressed in its map frame.
     team : names of all robots whose maps are merged (``self_name`` included).
     params : merge parameters.
-    min_maps : merge once this many maps are held (default: the whole team).
+    min_maps : merge once this many maps are held, own map included (default: the whole team; 2: any
+        pair; more than the team: the whole team).
+    strategy : "orders" (the thesis's merge orders) or "tree" (verified pairs, maximum spanning tree).
     """
 
     self_name: str
@@ -45,6 +55,7 @@ class TeamMerger:
     current_stamp: float | None = None
     cycles: int = 0
     reuse: bool = True  # reuse the pair alignment of two unchanged maps from the previous cycle
+    strategy: str = "orders"
     _pairs: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -53,6 +64,8 @@ class TeamMerger:
             raise ValueError(f"{self.self_name!r} is not in the team {self.team}")
         if len(set(self.team)) != len(self.team):
             raise ValueError(f"team names must be unique: {self.team}")
+        if self.strategy not in STRATEGIES:
+            raise ValueError(f"strategy must be one of {STRATEGIES}, got {self.strategy!r}")
 
     def receive(self, msg: MapMessage) -> bool:
         """Store a map; an older stamp than the one held (out-of-order delivery) is dropped."""
@@ -65,7 +78,7 @@ class TeamMerger:
         return True
 
     def ready(self) -> bool:
-        need = len(self.team) if self.min_maps is None else self.min_maps
+        need = len(self.team) if self.min_maps is None else min(self.min_maps, len(self.team))
         return self.self_name in self.maps and len(self.maps) >= max(2, need)
 
     def inputs(self) -> list[MapInput]:
@@ -77,7 +90,8 @@ class TeamMerger:
         """Run a merge cycle over the held maps; keep its alignment if it is accepted."""
         if not self.ready():
             raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
-        result = merge_team(self.inputs(), self.params, reuse=self._pairs if self.reuse else None)
+        merge = merge_tree if self.strategy == "tree" else merge_team
+        result = merge(self.inputs(), self.params, reuse=self._pairs if self.reuse else None)
         self.cycles += 1
         if result.accepted:
             self.current = result

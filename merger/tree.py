@@ -1,0 +1,188 @@
+"""Team merging from verified pairs: a maximum spanning tree of pairwise alignments (issue 10, item 2).
+
+The thesis's procedure (:func:`merger.team.merge_team`, ``strategy: orders``) searches every merge order
+again whenever any map changes: N(N−1)/2 orders of N−1 searches each, most of them onto superpositions
+that are new every cycle. Here every *pair* of raw maps is searched once per pair of map versions and
+verified on its own (ν_ij on the whole maps, in map i's frame); a new map from one robot costs its N−1
+pair searches, every other pair is reused from the previous cycle. The team map is then assembled:
+
+1. the verified pairs are the edges of a graph weighted by ν; its maximum spanning tree (Kruskal, ties to
+   the lower indices) links every map that some chain of verified pairs links to map 0 (the merging
+   robot's), and each such map's placement onto map 0 is composed along its tree path;
+2. every verified pair that is *not* a tree edge is a cycle of the graph: its own alignment must agree
+   with the composed placements (within 10° and 0.2 m, the ambiguity rule's distances), otherwise the
+   cycle is rejected as inconsistent — a false pair closes a loop that the true pairs do not;
+3. every two placed maps are verified again on map 0's frame with the composed placements: a pair that
+   overlaps (support ≥ ``min_support``) must reach ν ≥ ``nu_min``; a pair that hardly overlaps carries
+   no evidence either way (two robots on opposite sides of a large circle) and is not required to.
+
+Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
+team), and names the others in ``reason``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
+x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .grid import OccupancyGrid
+from .search import Alignment, angle_diff_deg, search, wrap_deg
+from .superpose import fuse
+from .team import (AMBIGUOUS_DEG, AMBIGUOUS_M, ORIGIN, MapInput, MergeParams, OrderResult, Placement,
+                   TeamMergeResult, Warps, _pair_key, place_on_frame0, problem_for)
+from .transform import overlap, rotation
+from .verify import Verification, pairwise, verify
+
+PairResult = tuple[Alignment, Verification]  # map j searched onto map i, verified in i's frame
+
+
+def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps) -> PairResult:
+    """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame."""
+    al = search(problem_for(maps[i].grid, maps[i].center, maps[j], params), params.method)
+    if params.verification == "whole_map":
+        a, b = overlap(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m))
+        ver = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
+                     label=f"{maps[i].name}|{maps[j].name}")
+    else:
+        ok = al.score >= params.score_min
+        ver = Verification(al.score, al.counts, ok, "" if ok else
+                           f"score of {maps[j].name} = {al.score:.3f} < score_min {params.score_min:g}")
+    return al, ver
+
+
+def spanning_tree(n: int, edges: dict[tuple[int, int], float]) -> list[tuple[int, int]]:
+    """Maximum spanning forest (Kruskal): edges (i, j), i < j, by decreasing weight, ties to lower indices."""
+    parent = list(range(n))
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    tree = []
+    for (i, j), _ in sorted(edges.items(), key=lambda kv: (-kv[1], kv[0])):
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            parent[rj] = ri
+            tree.append((i, j))
+    return tree
+
+
+def relative(al: Alignment, reverse: bool) -> Placement:
+    """(θ, t) of a pair's alignment (j onto i); ``reverse``: i onto j, θ_ji = −θ_ij, t_ji = −R(−θ_ij)·t_ij."""
+    th, t = float(al.theta_deg), np.asarray(al.translation_m, np.float64)
+    if not reverse:
+        return th, (float(t[0]), float(t[1]))
+    d = -(rotation(-th) @ t)
+    return wrap_deg(-th), (float(d[0]), float(d[1]))
+
+
+def chain(p_parent: Placement, rel: Placement) -> Placement:
+    """Placement onto map 0 of a map placed ``rel`` onto a map placed ``p_parent`` onto map 0."""
+    th0, t0 = p_parent
+    d = rotation(th0) @ np.asarray(rel[1], np.float64)
+    return wrap_deg(th0 + rel[0]), (float(t0[0] + d[0]), float(t0[1] + d[1]))
+
+
+def compose_tree(n: int, tree: list[tuple[int, int]], pairs: dict[tuple[int, int], PairResult]):
+    """Placements onto map 0 of every map the tree links to it, in breadth-first order, and the tree edges
+    used as (parent, child) pairs."""
+    nbrs: dict[int, list[int]] = {k: [] for k in range(n)}
+    for i, j in tree:
+        nbrs[i].append(j)
+        nbrs[j].append(i)
+    place: dict[int, Placement] = {0: (0.0, ORIGIN)}
+    links: list[tuple[int, int]] = []
+    queue = [0]
+    for a in queue:
+        for b in sorted(nbrs[a]):
+            if b in place:
+                continue
+            al = pairs[(min(a, b), max(a, b))][0]
+            place[b] = chain(place[a], relative(al, reverse=a > b))
+            links.append((a, b))
+            queue.append(b)
+    return place, links
+
+
+def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
+                    tree: list[tuple[int, int]], maps: list[MapInput]) -> list[str]:
+    """Verified non-tree pairs between placed maps whose own alignment disagrees with the composed one."""
+    out = []
+    in_tree = set(tree)
+    for (i, j), (al, ver) in pairs.items():
+        if not ver.passed or (i, j) in in_tree or i not in place or j not in place:
+            continue
+        th_i, t_i = place[i]
+        th_j, t_j = place[j]
+        d = rotation(-th_i) @ (np.asarray(t_j, np.float64) - np.asarray(t_i, np.float64))
+        dth = abs(angle_diff_deg(wrap_deg(th_j - th_i), al.theta_deg))
+        dt = math.dist((float(d[0]), float(d[1])), tuple(al.translation_m))
+        if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
+            out.append(f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
+                       f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement")
+    return out
+
+
+def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
+               reuse: dict | None = None) -> TeamMergeResult:
+    """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
+
+    ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): every pair's
+    search and verification, by the versions of its two maps; after the cycle it holds only this cycle's
+    pairs. The result has one hypothesis (``orders[0]``): the placed maps in tree order, its ``steps``
+    the tree's pair alignments (child onto parent, in the parent's frame), its ``checks`` the placed
+    pairs verified on map 0's frame."""
+    if len(maps) < 2:
+        raise ValueError(f"merging needs at least two maps, got {len(maps)}")
+    t0 = time.perf_counter()
+    warps = Warps(maps)
+    pairs: dict[tuple[int, int], PairResult] = {}
+    live = set()
+    for i, j in pairwise(maps):
+        key = _pair_key(maps[i], maps[j], params) if reuse is not None else None
+        hit = reuse.get(key) if key is not None else None
+        if hit is None:
+            hit = pair_result(maps, i, j, params, warps)
+            if key is not None:
+                reuse[key] = hit
+        live.add(key)
+        pairs[(i, j)] = hit
+    if reuse is not None:
+        for key in [k for k in reuse if k not in live]:
+            del reuse[key]
+    edges = {ij: ver.nu for ij, (_, ver) in pairs.items() if ver.passed}
+    tree = spanning_tree(len(maps), edges)
+    place, links = compose_tree(len(maps), tree, pairs)
+    if len(place) == 1:  # no verified pair reaches map 0: report its best pair, rejected
+        best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)][1].nu, -k))
+        place[best] = relative(pairs[(0, best)][0], reverse=False)
+        links = [(0, best)]
+    order = list(place)  # breadth-first: map 0 first
+    sub = [maps[k] for k in order]
+    sub_place = {s: place[k] for s, k in enumerate(order)}
+    sw = Warps(sub)
+    checks, failed = {}, []
+    for a, b in pairwise(sub):
+        v = sw.check(a, sub_place[a], b, sub_place[b], params) if params.verification == "whole_map" \
+            else pairs[(min(order[a], order[b]), max(order[a], order[b]))][1]
+        checks[f"{sub[a].name}|{sub[b].name}"] = v
+        if not v.passed and (v.support >= params.min_support or params.verification != "whole_map"):
+            failed.append(v.reason)
+    linked = {(min(a, b), max(a, b)) for a, b in links}
+    if any(not pairs[ij][1].passed for ij in linked):  # the fallback pair of an unlinked map 0
+        failed += [pairs[ij][1].reason for ij in linked if not pairs[ij][1].passed]
+    failed += inconsistencies(place, pairs, tree, maps)
+    steps = tuple((maps[b].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
+    result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
+                         not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
+    chosen, merged, layers = (result, None, {}) if result.accepted else (None, None, {})
+    if chosen is not None:
+        lay = place_on_frame0(sub, sub_place, sw)
+        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
+        layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
+    return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3)

@@ -1,0 +1,154 @@
+"""Team merging from verified pairs along a maximum spanning tree (merger.tree, strategy "tree")."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from merger.online import MapMessage, TeamMerger
+from merger.search import angle_diff_deg
+from merger.team import MapInput, MergeParams, _pair_key, compose, merge_team
+from merger.tree import chain, merge_tree, relative, spanning_tree
+from merger.verify import Verification
+from merger.similarity import Counts
+from tests.conftest import three_views
+
+
+def test_spanning_tree_is_maximum_and_deterministic():
+    edges = {(0, 1): 0.6, (0, 2): 0.9, (1, 2): 0.8, (2, 3): 0.7, (1, 3): 0.7}
+    assert spanning_tree(4, edges) == [(0, 2), (1, 2), (1, 3)]  # (1,3) before (2,3): equal weight, lower index
+    assert spanning_tree(5, {(0, 1): 0.5, (3, 4): 0.9}) == [(3, 4), (0, 1)]  # a forest: 2 is alone
+    assert spanning_tree(3, {}) == []
+
+
+def _al(theta, t):
+    class A:
+        theta_deg = theta
+        translation_m = t
+    return A()
+
+
+def test_relative_and_chain_compose_like_the_orders_placements():
+    """Placing j onto i then i onto 0 agrees with merger.team.compose, and a reversed pair undoes itself."""
+    th, t = relative(_al(30.0, (0.2, -0.1)), reverse=False)
+    back = relative(_al(30.0, (0.2, -0.1)), reverse=True)
+    p = chain((th, t), back)  # i → j → i: the identity
+    assert abs(angle_diff_deg(p[0], 0.0)) < 1e-9 and np.allclose(p[1], (0.0, 0.0), atol=1e-12)
+    # onto map 1's frame: map 0 at 0, map 1 at (50°, t1), map 2 at (120°, t2); compose gives 2 onto 1
+    onto0 = {0: (0.0, (0.0, 0.0)), 1: (50.0, (0.3, 0.1)), 2: (120.0, (-0.2, 0.4))}
+    onto1 = compose(onto0, 0, 1)
+    p2 = chain(onto0[1], onto1[2])  # 2 placed onto 1, 1 placed onto 0: 2 onto 0 again
+    assert abs(angle_diff_deg(p2[0], 120.0)) < 1e-9 and np.allclose(p2[1], (-0.2, 0.4), atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def views():
+    return three_views(3)
+
+
+def _inputs(names, maps, versions=None):
+    return [MapInput(n, g, c, None if versions is None else versions[k])
+            for k, (n, (g, c)) in enumerate(zip(names, maps, strict=True))]
+
+
+def test_tree_merges_three_maps_correctly(views):
+    _, names, maps, truth = views
+    res = merge_tree(_inputs(names, maps), MergeParams(roi_m=8.0))
+    assert res.accepted and res.frame == "Lyon" and len(res.orders) == 1
+    for n in names:
+        assert abs(angle_diff_deg(res.chosen.theta_deg[n], truth[n])) <= 1.0
+    assert len(res.chosen.checks) == 3 and all(v.passed for v in res.chosen.checks.values())
+    assert {frozenset(k.split("|")) for k in res.chosen.nu} == {frozenset(p) for p in
+                                                                 (("Lyon", "Auckland"), ("Lyon", "Nevers"),
+                                                                  ("Auckland", "Nevers"))}
+    assert len(res.chosen.steps) == 2  # two tree edges for three maps
+    assert set(res.layers) == set(names) and res.merged.count()["occupied"] > max(g.count()["occupied"]
+                                                                                 for g, _ in maps)
+    # the same maps merged by the thesis's orders agree within the search's precision
+    orders = merge_team(_inputs(names, maps), MergeParams(roi_m=8.0))
+    for n in names:
+        assert abs(angle_diff_deg(res.chosen.theta_deg[n], orders.chosen.theta_deg[n])) <= 0.5
+
+
+def test_a_map_that_no_verified_pair_reaches_is_left_out(views):
+    """A teammate's useless map (all unknown) fails every pair: the others are merged without it."""
+    _, names, maps, truth = views
+    g, c = maps[2]
+    blank = type(g).unknown(g.height, g.width, g.resolution, g.origin)
+    res = merge_tree(_inputs(names, [maps[0], maps[1], (blank, c)]), MergeParams(roi_m=8.0))
+    assert res.accepted and set(res.chosen.theta_deg) == {"Lyon", "Auckland"}
+    assert abs(angle_diff_deg(res.chosen.theta_deg["Auckland"], truth["Auckland"])) <= 1.0
+    assert set(res.layers) == {"Lyon", "Auckland"}
+    # map 0 itself useless: nothing reaches it, the best pair is reported and rejected
+    res0 = merge_tree(_inputs(names, [(blank, c), maps[1], maps[2]]), MergeParams(roi_m=8.0))
+    assert not res0.accepted and len(res0.top.theta_deg) == 2 and "support" in res0.reason
+
+
+def test_a_false_pair_that_closes_an_inconsistent_loop_is_rejected(views):
+    """A wrong pair alignment with a high ν becomes a tree edge; the two true verified pairs around the
+    loop disagree with it, so the cycle is rejected as inconsistent instead of accepting a false merge."""
+    _, names, maps, _ = views
+    params = MergeParams(roi_m=8.0)
+    inputs = _inputs(names, maps, versions=[1, 1, 1])
+    reuse = {}
+    good = merge_tree(inputs, params, reuse=reuse)
+    assert good.accepted and len(reuse) == 3
+    key = _pair_key(inputs[1], inputs[2], params)
+    al, _ = reuse[key]
+    wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 180.0) % 360.0)
+    reuse[key] = (wrong, Verification(0.99, Counts(5000, 10), True))
+    res = merge_tree(inputs, params, reuse=reuse)
+    assert not res.accepted and "inconsistent" in res.reason
+
+
+def test_tree_cycles_search_only_the_pairs_of_a_changed_map(monkeypatch):
+    import merger.tree as tree
+
+    _, names, maps, _ = three_views(3)
+    _, _, later, _ = three_views(3, arc=25.0)
+    calls = []
+    real = tree.search
+    monkeypatch.setattr(tree, "search", lambda *a, **k: calls.append(1) or real(*a, **k))
+    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0), strategy="tree")
+    for n, (g, c) in zip(names, maps, strict=True):
+        tm.receive(MapMessage(n, 1.0, g, c))
+    first = tm.cycle()
+    assert first.accepted and len(calls) == 3
+    calls.clear()
+    tm.receive(MapMessage("Nevers", 2.0, *later[2]))
+    second = tm.cycle()
+    assert len(calls) == 2 and len(tm._pairs) == 3  # the Lyon|Auckland pair reused
+    scratch = merge_tree(tm.inputs(), tm.params)
+    assert [o.to_dict() for o in second.orders] == [o.to_dict() for o in scratch.orders]
+    assert np.array_equal(second.merged.states, scratch.merged.states)
+
+
+def test_team_merger_rejects_an_unknown_strategy():
+    with pytest.raises(ValueError, match="strategy"):
+        TeamMerger("A", ("A", "B"), strategy="star")
+
+
+def test_tree_merges_every_robot_of_a_simulated_scene():
+    """Scene 2, exact center: the tree merges every robot correctly, without a false merge."""
+    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    sc = load_scenario(bundled_scenarios()["scene2"]).with_overrides(
+        ["merger.method=fast", "duration_s=10", "merger.strategy=tree"])
+    res = Simulation(sc).run()
+    assert res.false_merges == 0 and res.all_merged()
+    assert all(math.isfinite(r.first_merge_s) for r in res.robots.values())
+
+
+def test_hall_of_four_robots_every_robot_places_every_teammate():
+    """The bundled 4-robot hall (partial teams, tree): each robot first merges a pair, then the team."""
+    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    sc = load_scenario(bundled_scenarios()["hall4"]).with_overrides(["duration_s=14", "merger.strategy=tree"])
+    assert sc.merger.min_maps == 2 and len(sc.robots.names) == 4
+    res = Simulation(sc).run()
+    assert res.false_merges == 0 and res.all_merged()
+    for r in res.robots.values():
+        assert r.first_pair_merge_s <= r.first_merge_s and r.teammates_placed_final == 3

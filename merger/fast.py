@@ -86,6 +86,7 @@ import cv2
 import numpy as np
 import scipy.fft as sfft
 
+from .cache import BoundedCache, array_digest
 from .grid import FREE_S, OCCUPIED_S
 from .search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
@@ -105,6 +106,12 @@ _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ e
 _DELTA_RAD = 1e-9
 _FULL_CIRCLE_R = 1e-6  # a cell closer than this (cells) to the center touches every angle
 _NCC_INFLATE = 1e-9
+_MOVING_CACHE = BoundedCache(32, 32 << 20)  # moving maps' sector spectra (a merge cycle reuses them)
+
+
+def clear_cache() -> None:
+    """Forget the moving maps' sector spectra (benchmarks time cold searches)."""
+    _MOVING_CACHE.clear()
 
 
 def sector_grain(n: int) -> float:
@@ -202,8 +209,10 @@ def _corr(ref_spec: np.ndarray, mov_spec: np.ndarray) -> np.ndarray:
 
 
 def _polar_boxes(x0, y0, size):
-    """Polar boxes (rmin, rmax, angle lo, angle hi in degrees, full circle?) of squares [x0, x0+size] ×
-    [y0, y0+size] (metres from the center)."""
+    """Polar boxes of squares [x0, x0+size] × [y0, y0+size] (metres from the center): rmin, rmax (nearest
+    and farthest point), and the angles (radians) ac ∓ asin(ρ/|c|) about the direction ac of the
+    square's centre c, ρ = size/√2 its half-diagonal — every point of the square lies within ρ of c, so
+    within that angle of ac; the interval is set to ±π (the whole circle) when |c| ≤ ρ."""
     x1, y1 = x0 + size, y0 + size
     dx = np.maximum(np.maximum(x0, -x1), 0.0)
     dy = np.maximum(np.maximum(y0, -y1), 0.0)
@@ -211,13 +220,11 @@ def _polar_boxes(x0, y0, size):
     rmax = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1)))
     xc, yc = x0 + size / 2, y0 + size / 2
     ac = np.arctan2(yc, xc)
-    lo = np.full(x0.shape, np.inf)
-    hi = np.full(x0.shape, -np.inf)
-    for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
-        d = np.mod(np.arctan2(cy, cx) - ac + math.pi, 2 * math.pi) - math.pi
-        np.minimum(lo, d, out=lo)
-        np.maximum(hi, d, out=hi)
-    return rmin, rmax, ac + lo, ac + hi
+    rho = size * math.sqrt(0.5)
+    dc = np.hypot(xc, yc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(dc > rho * (1 + 1e-9), np.arcsin(np.minimum(rho / dc, 1.0)), math.pi)
+    return rmin, rmax, ac - w, ac + w
 
 
 class SectorBounds:
@@ -231,13 +238,11 @@ class SectorBounds:
         flat = ref_roi.reshape(-1)
         ref_occ, ref_free = flat == OCCUPIED_S, flat == FREE_S
         self.sx = sx
-        mov = self._moving_sectors(problem)
+        spec = dict(self._moving_sectors(problem))
         hists = {"n_occ": _hist(lay, np.flatnonzero(ref_occ))}
         if self.measure == "birk_carpin":
             hists["n_free"] = _hist(lay, np.flatnonzero(ref_free))
-        names = list(mov) + list(hists)
-        spectra = _row_spectra(lay, np.stack([*mov.values(), *hists.values()]))  # one FFT for all
-        spec = dict(zip(names, spectra, strict=True))
+        spec.update(zip(hists, _row_spectra(lay, np.stack(list(hists.values()))), strict=True))
         n_occ = spec["n_occ"]
         a = _corr(n_occ, spec["may_occ"])
         if self.measure == "ncc":
@@ -255,7 +260,8 @@ class SectorBounds:
             self.values = np.where(a > 0, a / (a + d), 0.0)
 
     def _moving_sectors(self, problem: RotationProblem) -> dict[str, np.ndarray]:
-        """(R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin) of the moving map.
+        """Row spectra of the (R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin)
+        of the moving map (cached, :data:`_MOVING_CACHE`).
 
         The moving map is read in blocks of q × q cells (q ≈ half a sector): a block *may* hold a class
         when one of its cells does, *surely* holds it when all do; blocks tile the plane like cells, so
@@ -265,7 +271,9 @@ class SectorBounds:
         q = max(1, int(lay.wb / mres / POOL_DIV))
         cmx, cmy = problem.center_moving
         half = problem.n * lay.res / 2.0
-        reach = max(len(lay.bins) * lay.wb, half * math.sqrt(2)) + 3 * q * mres
+        # only cells that meet the moving ROI's square matter (outside it a lookup is unknown): the crop is
+        # the square and two blocks around it; blocks beyond are outside the square, as its outer ring
+        reach = half + 2 * q * mres
         c0 = int(math.floor((cmx - reach - mov.origin[0]) / mres))
         r0 = int(math.floor((cmy - reach - mov.origin[1]) / mres))
         size = (int(math.ceil(2 * reach / mres)) + 2 + q - 1) // q * q
@@ -274,6 +282,13 @@ class SectorBounds:
         gr0, gr1 = max(r0, 0), min(r0 + size, mov.height)
         if gc0 < gc1 and gr0 < gr1:
             crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = mov.states[gr0:gr1, gc0:gc1]
+        # a map is the moving map of several searches of a merge cycle: its sector spectra are kept,
+        # keyed by the geometry and the crop's content (never served stale)
+        key = (lay.n, lay.res, lay.wb, q, self.measure, mres, cmx - mov.origin[0] - c0 * mres,
+               cmy - mov.origin[1] - r0 * mres, size, array_digest(crop))
+        hit = _MOVING_CACHE.get(key)
+        if hit is not None:
+            return dict(zip(hit[0], hit[1], strict=True))
         pmax, pmin = _pool(crop, q, np.maximum), _pool(crop, q, np.minimum)
         ps, bs = size // q, q * mres  # blocks per side, block side (metres)
         # block corners relative to the moving center, metres
@@ -294,6 +309,8 @@ class SectorBounds:
         # the sectors' center points: their blocks
         cc = np.floor((cmx - mov.origin[0] + lay.cx) / mres).astype(np.intp) - c0
         cr = np.floor((cmy - mov.origin[1] + lay.cy) / mres).astype(np.intp) - r0
+        np.clip(cc, 0, size - 1, out=cc)  # a center beyond the crop: a block of its outer ring (outside)
+        np.clip(cr, 0, size - 1, out=cr)
         center = (cr // q) * ps + cc // q
 
         def touched(blocks):
@@ -311,7 +328,11 @@ class SectorBounds:
         if self.measure == "birk_carpin":
             fany = (_pool(crop == FREE_S, q, np.maximum) if q > 1 else crop == FREE_S) & ~outside
             out["may_free"] = fany.reshape(-1).take(center) | touched(fany & dil(~fany))
-        return {k: v.take(lay.to_rows).reshape(lay.rows, 360).astype(np.float64) for k, v in out.items()}
+        names = list(out)
+        rows = np.stack([out[k].take(lay.to_rows).reshape(lay.rows, 360) for k in names]).astype(np.float64)
+        spectra = _row_spectra(lay, rows)
+        _MOVING_CACHE.put(key, (tuple(names), spectra))
+        return dict(zip(names, spectra, strict=True))
 
     def _raster(self, cells: np.ndarray, size: int, xs, ys, mres) -> np.ndarray:
         """Natural-layout mask of the sectors touched by the given crop cells (flat indices)."""
@@ -326,7 +347,7 @@ class SectorBounds:
         i0 = np.maximum(np.ceil((rmin - dr) / lay.wb).astype(np.int64) - 1, 0)
         i1 = np.minimum(np.floor((rmax + dr) / lay.wb).astype(np.int64), nb - 1)
         keep = i0 <= i1
-        full = rmin < _FULL_CIRCLE_R * mres
+        full = (rmin < _FULL_CIRCLE_R * mres) | (hi - lo >= 2 * math.pi - 1e-9)
         with np.errstate(divide="ignore"):
             margin = _DELTA_RAD + np.where(full, 0.0, dr / np.maximum(rmin, 1e-300))
         lo_deg, hi_deg = np.degrees(lo - margin), np.degrees(hi + margin)
@@ -403,13 +424,20 @@ class _Coarse:
         self.tightened = np.zeros(360, bool)
         self.can_tighten = ev.problem.measure == "similarity"
 
-    def evaluate(self, idx) -> None:
+    def evaluate(self, idx, extra=()) -> None:
+        """Exact scores at the coarse angles ``idx``, and at the angles ``extra`` in the same batch (the
+        evaluator keeps them; those that are whole degrees in [0, 360) count as coarse values)."""
         todo = [int(i) for i in dict.fromkeys(idx) if int(i) not in self.values]
-        if todo:
-            vals = self.ev.scores([float(i) for i in todo])
-            self.values.update(zip(todo, vals.tolist(), strict=True))
-            self.bounds[todo] = vals
-            self.tightened[todo] = True
+        extra = [float(a) for a in extra]
+        if todo or extra:
+            vals = self.ev.scores([float(i) for i in todo] + extra).tolist()
+            got = dict(zip(todo, vals, strict=False))
+            got.update({int(a): v for a, v in zip(extra, vals[len(todo):], strict=True)
+                        if 0.0 <= a < 360.0 and a == int(a)})
+            got = {i: v for i, v in got.items() if i not in self.values}
+            self.values.update(got)
+            self.bounds[list(got)] = list(got.values())
+            self.tightened[list(got)] = True
 
     def tighten(self, idx) -> None:
         todo = [int(i) for i in idx if not self.tightened[i]]
@@ -418,9 +446,11 @@ class _Coarse:
             self.bounds[todo] = np.minimum(self.bounds[todo], ub)
             self.tightened[todo] = True
 
-    def best(self, allowed: np.ndarray | None = None) -> int | None:
+    def best(self, allowed: np.ndarray | None = None, with_fine: bool = False) -> int | None:
         """The first maximum of the exact coarse profile over ``allowed`` (a mask over 0..359): evaluates
-        angles in decreasing order of bound until no other angle can beat the best one evaluated."""
+        angles in decreasing order of bound until no other angle can beat the best one evaluated.
+        ``with_fine``: the first angle evaluated comes with its refinement angles, in the same batch (it
+        is usually the answer: the refinement then costs no second pass)."""
         idx = np.arange(360)
         mask = np.ones(360, bool) if allowed is None else allowed.copy()
         if not mask.any():
@@ -443,7 +473,8 @@ class _Coarse:
                     self.tighten(cand[:FIRST_BATCH])
                     top = cand[:FIRST_BATCH]
                     cand = top[np.lexsort((top, -self.bounds[top]))]
-                self.evaluate(cand[:1])
+                first = int(cand[0])
+                self.evaluate([first], fine_angles(float(first)) if with_fine else ())
                 continue
             if self.can_tighten and not self.tightened[cand].all():
                 self.tighten(cand)  # all that could still win, in one batch
@@ -474,7 +505,7 @@ def fast_search(problem: RotationProblem) -> Alignment:
     coarse angle evaluated, a true upper bound elsewhere (:func:`exact_profile` completes it).
     """
     ev, coarse = _prepare(problem)
-    best = coarse.best()
+    best = coarse.best(with_fine=True)
     fine = [float(a) for a in fine_angles(float(best))]
     values = ev.scores(fine)
     k = int(np.argmax(values))  # the first maximum, as the reference's strict '>' scan

@@ -86,7 +86,7 @@ import cv2
 import numpy as np
 import scipy.fft as sfft
 
-from .cache import BoundedCache, array_digest
+from .cache import BoundedCache
 from .grid import FREE_S, OCCUPIED_S
 from .search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
@@ -102,6 +102,7 @@ from .sparse import SparseEvaluator, lattice_coords
 POOL_DIV = 2.0  # blocks of the moving map ≈ a sector / POOL_DIV
 FIRST_BATCH = 3  # angles evaluated exactly in the first batch (best bounds first); batches then double
 MAX_BATCH = 48
+TIGHTEN_BATCH = 32  # angles given the evaluator's per-angle bound at a time (ω̃)
 _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
 _DELTA_RAD = 1e-9
 _FULL_CIRCLE_R = 1e-6  # a cell closer than this (cells) to the center touches every angle
@@ -282,13 +283,13 @@ class SectorBounds:
         gr0, gr1 = max(r0, 0), min(r0 + size, mov.height)
         if gc0 < gc1 and gr0 < gr1:
             crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = mov.states[gr0:gr1, gc0:gc1]
-        # a map is the moving map of several searches of a merge cycle: its sector spectra are kept,
-        # keyed by the geometry and the crop's content (never served stale)
+        # a map is the moving map of several searches of a merge cycle: its sector spectra are kept, keyed
+        # by the geometry and a cheap sample of the crop, and served only if the whole crop is equal
         key = (lay.n, lay.res, lay.wb, q, self.measure, mres, cmx - mov.origin[0] - c0 * mres,
-               cmy - mov.origin[1] - r0 * mres, size, array_digest(crop))
+               cmy - mov.origin[1] - r0 * mres, size, hash(crop[::5, ::3].tobytes()))
         hit = _MOVING_CACHE.get(key)
-        if hit is not None:
-            return dict(zip(hit[0], hit[1], strict=True))
+        if hit is not None and np.array_equal(hit[0], crop):
+            return dict(zip(hit[1], hit[2], strict=True))
         pmax, pmin = _pool(crop, q, np.maximum), _pool(crop, q, np.minimum)
         ps, bs = size // q, q * mres  # blocks per side, block side (metres)
         # block corners relative to the moving center, metres
@@ -331,7 +332,7 @@ class SectorBounds:
         names = list(out)
         rows = np.stack([out[k].take(lay.to_rows).reshape(lay.rows, 360) for k in names]).astype(np.float64)
         spectra = _row_spectra(lay, rows)
-        _MOVING_CACHE.put(key, (tuple(names), spectra))
+        _MOVING_CACHE.put(key, (crop, tuple(names), spectra))
         return dict(zip(names, spectra, strict=True))
 
     def _raster(self, cells: np.ndarray, size: int, xs, ys, mres) -> np.ndarray:
@@ -476,8 +477,8 @@ class _Coarse:
                 first = int(cand[0])
                 self.evaluate([first], fine_angles(float(first)) if with_fine else ())
                 continue
-            if self.can_tighten and not self.tightened[cand].all():
-                self.tighten(cand)  # all that could still win, in one batch
+            if self.can_tighten and not self.tightened[cand[:TIGHTEN_BATCH]].all():
+                self.tighten(cand[:TIGHTEN_BATCH])  # the best bounds first; the order may change
                 continue
             self.evaluate(cand[:batch])
             batch = min(2 * batch, MAX_BATCH)

@@ -99,8 +99,9 @@ from .search import (
 )
 from .sparse import SparseEvaluator, lattice_coords
 
-POOL_DIV = 2.0  # blocks of the moving map ≈ a sector / POOL_DIV
-FIRST_BATCH = 3  # angles evaluated exactly in the first batch (best bounds first); batches then double
+POOL_DIV = 3.0  # blocks of the moving map ≈ a sector / POOL_DIV
+FIRST_BATCH = 12  # best sector bounds given the per-angle bound before the first exact evaluation
+EXACT_BATCH = 4  # exact evaluations per batch after the first (best bounds first); batches then double
 MAX_BATCH = 48
 TIGHTEN_BATCH = 32  # angles given the evaluator's per-angle bound at a time (ω̃)
 _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
@@ -116,9 +117,10 @@ def clear_cache() -> None:
 
 
 def sector_grain(n: int) -> float:
-    """Sector size (band width and arc of a bin at the band's outer edge), in ROI cells, for an (n, n) ROI:
-    about one cell up to 256 cells, then coarser (fewer sectors: the bounds cost ∝ (n / grain)²)."""
-    return max(2.0, n / 100.0)
+    """Sector size (band width, and arc of a bin at the band's outer edge) in ROI cells for an (n, n) ROI:
+    coarser sectors cost less (∝ (n / grain)²) and bound less tightly; 2 cells at 128, 4 at 256, 7 from
+    448 on (measured best on generated rooms)."""
+    return min(max(2.0, n / 64.0), 7.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -456,7 +458,7 @@ class _Coarse:
         mask = np.ones(360, bool) if allowed is None else allowed.copy()
         if not mask.any():
             return None
-        batch = FIRST_BATCH
+        batch = EXACT_BATCH
         while True:
             known = [i for i in self.values if mask[i]]
             best = max(known, key=lambda i: (self.values[i], -i)) if known else None

@@ -23,15 +23,20 @@ when a *true upper bound* of its score shows it cannot win; every other angle is
    NCC ≤ the largest value (sxy − c·sy)/√(vx·vy(sy)) can take with sxy ≤ min(A, sy), Y⁻ ≤ sy ≤ Y⁺
    (:func:`_ncc_upper`), with 0 included (the degenerate cases).
 2. **Best-first exact evaluation** (:class:`merger.sparse.SparseEvaluator`, which reproduces the
-   reference's counts exactly). Angles are evaluated in decreasing order of bound, in small batches,
-   until every unevaluated angle j has ``bound(j) < best`` or ``bound(j) == best and j > best angle``:
+   reference's counts exactly). Angles are taken in decreasing order of bound. For ω̃ an angle first
+   gets a tighter *per-angle* bound from the evaluator (:meth:`SparseEvaluator.upper_bounds`, cheap:
+   no whole-ROI pass), and is evaluated exactly only if that bound still lets it win. The loop stops
+   when every unevaluated angle j has ``bound(j) < best`` or ``bound(j) == best and j > best angle``:
    then none can beat the best one in the reference's order (higher score, then the first angle), and
    the best evaluated angle is the reference's coarse angle — ties and plateaus included, identical maps
-   too (the order of evaluation never decides, only scores and indices do).
+   too (the order of evaluation never decides, only scores and indices do). The first exact batch
+   carries the refinement angles of its angle (usually the answer: no second pass).
 3. **The refinement, exactly**: the 21 angles ``coarse ± 1°`` at 0.1° (the same floats as the
    reference's), all evaluated; the first maximum is θ; its score and counts equal ``problem.evaluate(θ)``.
 4. **The runner-up** (best coarse angle ≥ 10° from θ, first maximum) by the same best-first loop over
-   the far zone: exact. It is computed when first read (deferred, :class:`merger.search.Alignment`).
+   the far zone: exact. It is computed when first read (deferred, :class:`merger.search.Alignment`); a
+   far zone of noise-level scores needs most of its angles' per-angle bounds, so it costs several
+   searches.
 
 **Why the bounds hold.**
 
@@ -43,36 +48,52 @@ when a *true upper bound* of its score shows it cannot win; every other angle is
   moving center up to rounding (≪ δ), hence inside the (widened) moving sector s(p) − θ: the bins of
   band i shift by exactly B_i·θ. The reference resolves that point to the moving cell containing it
   (floor), and to *unknown* outside the moving ROI's square.
-* *Touching.* A cell touches a sector when its closed square meets the widened sector. We mark every
-  sector whose polar box meets the cell's polar box (radius from the nearest to the farthest point of
-  the square, angle over its corners; the whole circle for a cell at the center): a superset.
-* *MayOcc* = touched by an occupied cell not entirely outside the square (with margin). If p's lookup
-  is occupied and inside the square, its cell is such a cell and it touches the sector: A ≥ agr̃.
-* *SureFree(s)* = the sector's center point lies in a cell of class Fin (free, entirely inside the
-  square, with margin) **and** no cell of the boundary of Fin's complement (a non-Fin cell with an
-  8-neighbour in Fin) touches s. Then every point of s lies in a Fin cell: otherwise a path inside the
-  (connected) sector from its center to that point passes from a Fin cell to a non-Fin cell through a
-  shared edge or corner, and that non-Fin cell is a boundary cell touching s. So a lookup in s is free
-  and inside the square: a ref-occupied p counts in dis. *SureOcc* is the same with Oin (occupied,
-  entirely inside the square); a ref-free p whose lookup is surely occupied counts in dis, and in Σy.
-  The two parts of D count disjoint sets of lattice points (ref occupied / ref free): D ≤ dis.
-* *MayFree(s)* = the center lies in a Fany cell (free, not entirely outside the square) **or** a
-  boundary Fany cell (with an 8-neighbour not in Fany) touches s; by the same path argument a lookup
-  in s that is free and inside the square makes MayFree(s) true: F ≥ free/free.
+* *Blocks.* The moving map is read in q × q blocks of cells (q ≈ a third of a sector; 1 for small
+  ROIs). A block *may* hold a class when one of its cells does and *surely* holds it when all do; blocks
+  tile the plane as cells do, so the arguments below hold for blocks word for word.
+* *Touching.* A block touches a sector when its closed square meets the widened sector. We mark every
+  sector whose polar box meets the block's polar box — radius from the nearest to the farthest point of
+  the square; angle within ``asin(ρ/|c|)`` of the direction of its centre c (every point of the square
+  lies within its half-diagonal ρ of c), the whole circle when |c| ≤ ρ — a superset.
+* *MayOcc* = touched by a block holding an occupied cell and not entirely outside the square (with
+  margin). If p's lookup is occupied and inside the square, its block is such a block and touches the
+  sector: A ≥ agr̃.
+* *SureFree(s)* = the sector's center point lies in a block of class Fin (all cells free, block entirely
+  inside the square, with margin) **and** no block of the boundary of Fin's complement (a non-Fin block
+  with an 8-neighbour in Fin) touches s. Then every point of s lies in a Fin block: otherwise a path
+  inside the (connected) sector from its center to that point passes from a Fin block to a non-Fin
+  block through a shared edge or corner, and that non-Fin block is a boundary block touching s. So a
+  lookup in s is free and inside the square: a ref-occupied p counts in dis. *SureOcc* is the same with
+  Oin (all cells occupied, inside the square); a ref-free p whose lookup is surely occupied counts in
+  dis, and in Σy. The two parts of D count disjoint sets of lattice points (ref occupied / ref free):
+  D ≤ dis. (For ω̃ the SureOcc part is left out — it bounds next to nothing — which only lowers D.)
+* *MayFree(s)* = the center lies in a Fany block (holding a free cell, not entirely outside the square)
+  **or** a boundary Fany block (with an 8-neighbour not in Fany) touches s; by the same path argument a
+  lookup in s that is free and inside the square makes MayFree(s) true: F ≥ free/free.
+* *The crop.* Only blocks meeting the moving ROI's square can hold a lookup that is not unknown; the crop
+  is that square and two blocks around it, whose outer ring lies outside the square (non-Fin, non-Oin,
+  non-Fany) like every block beyond it, and a sector center beyond the crop is read in that ring.
 * *Counts → scores.* ω̃ = a/(a+d) grows with a and falls with d; integers are exact in float64 and
   correctly rounded division is monotone, so the float A/(A+D) ≥ the float the reference computes.
   Birk–Carpin likewise with a + f. NCC's bound is monotonicity on two intervals of sy (see
   :func:`_ncc_upper`), inflated by 1e-9 relative to cover rounding.
-* *Correlations.* All counts are sums of products of integers below 2^31 computed in float64 FFTs of
-  length 360; the rounding error is below 1e-6 (far below ½), so ``rint`` gives the exact integers.
-* Cells beyond the moving crop never matter: the crop reaches past every sector by two cells, and its
-  outermost cells lie outside the square (non-Fin, non-Oin, non-Fany) like the cells beyond it.
+* *Correlations.* Each count is Σ_rows of a length-360 circular correlation of non-negative integers,
+  at most the number of lattice points (≤ 1.6·10⁷: bounds are used for ROIs up to 4000 cells a side). A float64 FFT
+  correlation errs by at most a few ε·log₂360 times Σ_rows ‖N_row‖₂‖M_row‖₂ ≤ 10⁻⁵ here, far below ½,
+  so ``rint`` returns the exact integers (and :func:`_corr` checks every value lies within 0.1 of an
+  integer; if not, it gives up pruning — every angle is then evaluated).
+* *Per-angle bound* (ω̃, :meth:`SparseEvaluator.upper_bounds`): agr̃ and the reference-occupied half of
+  dis are exact; the other half is replaced by the number of occupied moving cells, not straddling the
+  square, whose centre maps (x_ref = c_ref + R(θ)(x_mov − c_mov)) within the inscribed radius of a
+  reference-free lattice point: that point's lookup lies in that cell (rotations keep distances), and
+  each lattice point has one cell, so that count ≤ the true half; the same monotonicity applies.
 
-Everything about the sectors and the lattice depends only on (n, cell size, sector size) and is cached.
-The returned ``profile`` is an **upper envelope**: exact at the coarse angles evaluated before the search
-returned, an upper bound of the exact score elsewhere (:func:`exact_profile` gives the reference's
-profile, evaluating the rest). The counts (Birk–Carpin's free/free part) and the runner-up are handed
-over deferred: a merge cycle reads θ and the score only.
+Everything about the sectors and the lattice depends only on (n, cell size, sector size) and is cached;
+a moving map's sector spectra are kept across the searches of a merge cycle (bounded, checked against
+the whole crop before use; :func:`clear_cache`). The returned ``profile`` is an **upper envelope**:
+exact at the coarse angles evaluated, an upper bound of the exact score elsewhere (:func:`exact_profile`
+gives the reference's profile, evaluating every angle). The counts (Birk–Carpin's free/free part) and
+the runner-up are handed over deferred: a merge cycle reads θ and the score only.
 """
 
 from __future__ import annotations
@@ -108,6 +129,7 @@ _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ e
 _DELTA_RAD = 1e-9
 _FULL_CIRCLE_R = 1e-6  # a cell closer than this (cells) to the center touches every angle
 _NCC_INFLATE = 1e-9
+MAX_BOUND_CELLS = 4000  # ROI side (cells) up to which the sector bounds are used
 _MOVING_CACHE = BoundedCache(32, 32 << 20)  # moving maps' sector spectra (a merge cycle reuses them)
 
 
@@ -206,9 +228,17 @@ def _row_spectra(lay: SectorLayout, rows_array: np.ndarray) -> np.ndarray:
     return sfft.rfft(rows_array, axis=-1)
 
 
+class _Inexact(Exception):
+    """An FFT correlation did not come out (near) integral: no bounds for this problem."""
+
+
 def _corr(ref_spec: np.ndarray, mov_spec: np.ndarray) -> np.ndarray:
     """Σ_rows Σ_a ref[row, a] · mov[row, (a − θ) mod 360] for θ = 0..359, as exact integers (float64)."""
-    return np.rint(sfft.irfft(np.einsum("rk,rk->k", ref_spec, np.conj(mov_spec)), n=360))
+    x = sfft.irfft(np.einsum("rk,rk->k", ref_spec, np.conj(mov_spec)), n=360)
+    r = np.rint(x)
+    if not np.abs(x - r).max(initial=0.0) < 0.1:
+        raise _Inexact
+    return r
 
 
 def _polar_boxes(x0, y0, size):
@@ -488,7 +518,12 @@ class _Coarse:
 
 def _prepare(problem: RotationProblem):
     ev = SparseEvaluator(problem)
-    bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx)).values
+    bounds = np.full(360, np.inf)  # without bounds every angle is evaluated (still exact)
+    if problem.n <= MAX_BOUND_CELLS:  # the FFT error bound (module documentation) covers these ROIs
+        try:
+            bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx)).values
+        except _Inexact:  # never seen
+            pass
     return ev, _Coarse(ev, np.array(bounds, np.float64))
 
 

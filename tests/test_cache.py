@@ -4,6 +4,7 @@ their bounds over many merge cycles with changing maps (issue 10: a long run mus
 import numpy as np
 import pytest
 
+import merger.fast as fast
 import merger.polar as polar
 import merger.window as window
 from merger.cache import BoundedCache, array_digest
@@ -81,6 +82,7 @@ def test_caches_stay_within_their_bounds_over_many_cycles(monkeypatch, window_m)
     monkeypatch.setattr(polar, "_CACHE", BoundedCache(5, 2 * 2**20))
     monkeypatch.setattr(polar, "_INDEX", BoundedCache(3, 2**30))
     monkeypatch.setattr(window, "ROT_CACHE_BYTES", 4 * 2**20)
+    monkeypatch.setattr(fast, "_MOVING_CACHE", BoundedCache(4, 4 * 2**20))  # the rotation-only search's
     _, names, maps, _ = three_views(3)
     params = MergeParams(roi_m=6.0, window_m=window_m)
     rng = np.random.default_rng(0)
@@ -97,8 +99,11 @@ def test_caches_stay_within_their_bounds_over_many_cycles(monkeypatch, window_m)
         assert len(polar._INDEX) <= 3
         assert window._ROT_BYTES[0] <= 4 * 2**20
         assert len(tm._pairs) <= 3
+        assert len(fast._MOVING_CACHE) <= 4 and fast._MOVING_CACHE.nbytes <= 4 * 2**20
         if k == 6:
             cached = [o.to_dict() for o in res.orders]
             polar.clear_cache()
+            fast.clear_cache()
             assert [o.to_dict() for o in merge_team(tm.inputs(), params).orders] == cached
-    assert polar._CACHE.hits > 0 and polar._CACHE.misses > 5  # since cycle 6: used, and evicting
+    used = polar._CACHE if window_m else fast._MOVING_CACHE  # W = 0: the sector spectra (merger.fast)
+    assert used.hits > 0 and used.misses > 5  # since cycle 6: used, and evicting

@@ -123,6 +123,7 @@ class Alignment:
     refined: bool = False
     grid_theta_deg: float | None = None
     grid_translation_m: tuple[float, float] | None = None
+    _beyond: tuple | None | Callable[[], tuple | None] = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_lock", threading.Lock())
@@ -158,13 +159,20 @@ class Alignment:
         return self._resolve("_counts", lambda c: c)
 
     @property
+    def beyond(self) -> tuple[float, tuple[float, float], float] | None:
+        """A better alignment found outside the translation window, ``(θ°, (tx, ty) m, coarse score)``,
+        or None (see :func:`merger.window.beyond_window`); computed on first access when deferred."""
+        return self._resolve("_beyond", lambda b: None if b is None else
+                             (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2])))
+
+    @property
     def runner_up(self) -> tuple[float, float]:
         """(runner_up_deg, runner_up_score), computed on first access when the search deferred it."""
         return self._resolve("_runner_up", lambda r: tuple(float(v) for v in r))
 
     def __getstate__(self) -> dict:
         state = {k: v for k, v in self.__dict__.items() if k != "_lock"}
-        state["_counts"], state["_runner_up"] = self.counts, self.runner_up
+        state["_counts"], state["_runner_up"], state["_beyond"] = self.counts, self.runner_up, self.beyond
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -194,6 +202,9 @@ class Alignment:
             "agree": self.counts.agree, "disagree": self.counts.disagree,
             "support": self.counts.support,
             "runner_up_deg": self.runner_up_deg, "runner_up_score": self.runner_up_score,
+            "beyond": None if self.beyond is None else {"theta_deg": self.beyond[0],
+                                                        "translation_m": list(self.beyond[1]),
+                                                        "score": self.beyond[2]},
         }
 
 

@@ -349,6 +349,18 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
                        {maps[k].name: place0[k][1] for k in order})
 
 
+def _beyond(order: OrderResult) -> str:
+    """Why the chosen order is refused because a search of it found a better alignment outside the
+    translation window ("" if none did; see :func:`merger.window.beyond_window`)."""
+    for name, al in order.steps:
+        if al.window_m > 0 and al.beyond is not None:
+            th, t, v = al.beyond
+            return (f"beyond the window: {name}'s best alignment lies outside ±{al.window_m:g} m (θ {th:.0f}°, "
+                    f"t ({t[0]:+.2f}, {t[1]:+.2f}) m, coarse score {v:.3f}): the center error may exceed "
+                    f"half the window; widen merger.window_m")
+    return ""
+
+
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
                reuse: dict | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
@@ -372,7 +384,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     chosen, merged, layers, ambiguity = None, None, {}, ""
     if accepted:
         best = max(accepted, key=lambda k: results[k].nu_sum)  # the first of equal sums
-        ambiguity = _ambiguity(results, accepted, best, params.margin)
+        ambiguity = _ambiguity(results, accepted, best, params.margin) or _beyond(results[best])
         chosen = None if ambiguity else results[best]
     if chosen is not None:
         lay = place_on_frame0(maps, aligned[best][0], warps)

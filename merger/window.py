@@ -107,10 +107,46 @@ def reference_window_search(problem):
             best = (float(a), s)
     theta = wrap_deg(best[0])
     profile = table.max(axis=0)
+    best_value = float(table[int(i_best), int(th_best)])
     return Alignment(theta, best[1].value, best[1].counts, problem.measure, "reference", problem.roi_m,
                      profile, runner_up(profile, theta), window_m=problem.window_m,
                      translation_m=problem.offset_m(*tc), cells=tc,
-                     fine=(np.asarray(angles, np.float64), np.asarray(fine_vals, np.float64)))
+                     fine=(np.asarray(angles, np.float64), np.asarray(fine_vals, np.float64)),
+                     _beyond=lambda: reference_beyond(problem, best_value, (int(th_best), tc)))
+
+
+def reference_beyond(problem, best_value: float, answer):
+    """Exhaustively, the best coarse (θ, t) outside the window and inside ``BEYOND_FACTOR`` × the window
+    (at most a quarter of the ROI side) that scores above ``best_value`` and is apart from the grid answer
+    ``answer`` = (θ°, (a, b) cells) (:func:`_apart`): ``(θ°, (tx, ty) m, score)``, else None. The
+    yardstick of :func:`beyond_window` (which looks only near approximate peaks)."""
+    from .search import measure_fn
+
+    big = _wide(problem)
+    k, kb = problem.window_cells, big.window_cells
+    if kb <= k:
+        return None
+    fn = measure_fn(problem.measure)
+    ring = [t for t in translation_offsets(kb) if max(abs(t[0]), abs(t[1])) > k]
+    refs = [big.at(a, b).ref_roi() for a, b in ring]
+    out = None
+    for th in range(360):
+        mov = big.moving_roi(float(th))
+        for t, r in zip(ring, refs, strict=True):
+            v = fn(r, mov).value
+            if v > best_value and (out is None or v > out[2]) and _apart(problem, (th, t), answer):
+                out = (float(th), big.offset_m(*t), float(v))
+    return out
+
+
+def _wide(problem):
+    """The problem with the guard's wider window (rotation and translation grid only)."""
+    from dataclasses import replace
+
+    from .search import MAX_WINDOW_FRACTION
+
+    wide = min(BEYOND_FACTOR * problem.window_m, MAX_WINDOW_FRACTION * problem.roi_m)
+    return replace(problem, window_m=wide, refine=False)
 
 
 # --- exact evaluation of one angle at many translations ---------------------------------------------
@@ -347,13 +383,19 @@ def _rotated(moving, digest: bytes, theta: float, center, n: int, res: float) ->
 
 
 # --- the approximate stage ----------------------------------------------------------------------------
-def approximate_window_table(problem, k: int):
+def window_pool(n: int, k: int) -> int:
+    """The approximate stage's pooling factor for an ROI of n cells and a window of ±k cells."""
+    return max(POLAR_POOL_MIN, int(round(n / POLAR_TARGET_CELLS)), int(math.ceil(k / MAX_LATTICE_STEPS)))
+
+
+def approximate_window_table(problem, k: int, pool: int | None = None):
     """Approximate values for every angle (1°) at translations of a coarse lattice.
 
     Returns ``(ts, table)``: translations in cells [(a, b), ...] (multiples of the pooling factor, the
     window's edges included) and a (len(ts), 360) array."""
     n, res = problem.n, problem.ref.resolution
-    pool = max(POLAR_POOL_MIN, int(round(n / POLAR_TARGET_CELLS)), int(math.ceil(k / MAX_LATTICE_STEPS)))
+    if pool is None:
+        pool = window_pool(n, k)
     lay = polar_layout(n, res, pool, True)
     mov = polar_spectra(problem.moving, problem.center_moving, lay)
     kp = max(1, int(round(k / pool)))  # lattice steps of one pooled cell, covering about ±k
@@ -427,21 +469,24 @@ def _peaks(ts, table, pool: int, limit: int):
     return picked
 
 
-def fast_window_search(problem):
-    """The fast rotation × translation search (see the module documentation)."""
-    from .search import Alignment, fine_angles, runner_up, wrap_deg
-
-    k = problem.window_cells
-    # the reference's tie order over translations (nearest first), as a rank per (b, a)
+def _tie_rank(k: int) -> np.ndarray:
+    """The reference's tie order over translations (nearest first), as a rank per (b + k, a + k)."""
     rank = np.empty((2 * k + 1, 2 * k + 1), np.int64)
     for i, (a, b) in enumerate(translation_offsets(k)):
         rank[b + k, a + k] = i
-    ts_c, table, pool = approximate_window_table(problem, k)
-    starts = _peaks(ts_c, table, pool, WINDOW_CANDIDATES)
-    ev = WindowEvaluator(problem)
+    return rank
 
-    def best_in(th: int, a: int, b: int, r: int):
+
+class _Climber:
+    """Hill climbs on the exact coarse grid (1° × one cell) within ±k cells, with ``ev``'s values."""
+
+    def __init__(self, ev: WindowEvaluator, k: int) -> None:
+        self.ev, self.k, self.rank = ev, k, _tie_rank(k)
+        self.walked: set = set()  # points a climb stepped from (r = 1): from there it is the same climb
+
+    def best_in(self, th: int, a: int, b: int, r: int):
         """The best (value, −rank, −θ) of θ ± 1° × the box of half side r about (a, b), in the window."""
+        k, rank = self.k, self.rank
         x0, x1, y0, y1 = max(-k, a - r), min(k, a + r), max(-k, b - r), min(k, b + r)
         gy, gx = np.divmod(np.arange((x1 - x0 + 1) * (y1 - y0 + 1)), x1 - x0 + 1)
         gx += x0
@@ -449,31 +494,44 @@ def fast_window_search(problem):
         rk = rank[gy + k, gx + k]
         best = None
         for x in ((th - 1) % 360, th, (th + 1) % 360):
-            v = ev.evaluate_ab(float(x), gx, gy)
+            v = self.ev.evaluate_ab(float(x), gx, gy)
             j = int(np.lexsort((rk, -v))[0])  # the best value, then the lowest rank
             key = (float(v[j]), -int(rk[j]), -x)
             if best is None or key > best[0]:
                 best = (key, x, (int(gx[j]), int(gy[j])))
         return best
 
-    best = None
-    walked: set = set()  # points an earlier climb stepped from (r = 1): from there it is the same climb
-    for th0, a0, b0 in starts:
-        th, t = th0, (a0, b0)
-        r = max(1, pool // 2)  # first look: the pooled cell around the start
+    def climb(self, th: int, t: tuple[int, int], r: int):
+        """Climb from (θ, t), first looking over the box of half side r; returns (key, θ, t) of the
+        local maximum, or None when the climb joins an earlier one (whose end is already known)."""
         key = None
         for _ in range(1000):
-            if r == 1 and (th, t) in walked:
-                key = None  # joins an earlier climb, whose end is already counted
-                break
+            if r == 1 and (th, t) in self.walked:
+                return None
             if r == 1:
-                walked.add((th, t))
-            key, x, tt = best_in(th, *t, r)
+                self.walked.add((th, t))
+            key, x, tt = self.best_in(th, *t, r)
             if (x, tt) == (th, t) and r == 1:
                 break
             th, t, r = x, tt, 1
-        if key is not None and (best is None or key > best[0]):
-            best = (key, th, t)
+        return key, th, t
+
+
+def fast_window_search(problem):
+    """The fast rotation × translation search (see the module documentation)."""
+    from .search import Alignment, fine_angles, runner_up, wrap_deg
+
+    k = problem.window_cells
+    ts_c, table, pool = approximate_window_table(problem, k)
+    starts = _peaks(ts_c, table, pool, WINDOW_CANDIDATES)
+    ev = WindowEvaluator(problem)
+    climber = _Climber(ev, k)
+    ends = []
+    for th0, a0, b0 in starts:
+        end = climber.climb(th0, (a0, b0), max(1, pool // 2))  # first look: the pooled cell around the start
+        if end is not None:
+            ends.append(end)
+    best = max(ends, key=lambda e: e[0])
     _, th_c, tc = best
     sub = problem.at(*tc)
     sev = SparseEvaluator(sub)
@@ -485,11 +543,71 @@ def fast_window_search(problem):
     for x, tab in ev.values.items():
         if float(x).is_integer() and not np.isnan(tab).all():
             profile[int(x)] = np.nanmax(tab)
+    best_value = best[0][0]
     al = Alignment(theta, float(values[kf]), lambda: sev.similarity(fine[kf]).counts, problem.measure,
                    "fast", problem.roi_m, profile, lambda: runner_up(profile, theta),
                    window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,
-                   fine=(np.asarray(fine), np.asarray(values, np.float64)))
+                   fine=(np.asarray(fine), np.asarray(values, np.float64)),
+                   _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)))
     return refine_alignment(problem, al, ev) if problem.refine else al
+
+
+BEYOND_FACTOR = 2.0  # the guard looks for better alignments up to this × the window ...
+BEYOND_SLACK = 0.15  # ... climbing from approximate peaks outside it within this of the best inside
+BEYOND_CANDIDATES = 3
+BEYOND_APART_DEG = 10.0  # a rival differs from the in-window answer by more than this (merger.team's
+BEYOND_APART_M = 0.2  # ambiguity rule uses the same separation), or by more than this in translation
+
+
+def _apart(problem, a, b) -> bool:
+    """Whether two grid alignments (θ°, (a, b) cells) are more than BEYOND_APART_DEG or BEYOND_APART_M
+    apart."""
+    from .search import angle_diff_deg
+
+    if abs(angle_diff_deg(float(a[0]), float(b[0]))) > BEYOND_APART_DEG:
+        return True
+    return math.dist(a[1], b[1]) * problem.ref.resolution > BEYOND_APART_M
+
+
+def beyond_window(problem, best_value: float, answer):
+    """The best exact local maximum found outside the window, up to ``BEYOND_FACTOR`` × the window (at
+    most a quarter of the ROI side), that scores above ``best_value`` and is apart from the grid answer
+    ``answer`` = (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None. Within BEYOND_APART_DEG and
+    BEYOND_APART_M of the answer it is the answer's own peak, cut by the window's edge: not a rival.
+
+    When the center error exceeds the window's reach the true alignment lies outside it, and the best
+    alignment inside can be a rival (in a symmetric room, the half turn). The guard computes the
+    approximate table (:func:`approximate_window_table`) over the wider window, and climbs exactly
+    (1° × one cell) from its best peaks outside the window that come within ``BEYOND_SLACK`` of its best
+    value inside. What it finds is evidence against the in-window answer, never an answer. It is a
+    heuristic in what it looks at (it can miss a peak the approximate table ranks low) but exact in
+    what it reports: a reported alignment is a real one, scoring more than the in-window answer."""
+    k = problem.window_cells
+    big = _wide(problem)
+    kb = big.window_cells
+    if kb <= k:
+        return None
+    ts, table, pool = approximate_window_table(big, kb)
+    outside = np.array([max(abs(a), abs(b)) > k for a, b in ts])
+    if not outside.any() or outside.all():
+        return None
+    floor = float(table[~outside].max()) - BEYOND_SLACK
+    ring = np.where(outside[:, None], table, -np.inf)
+    starts = [p for p in _peaks([t for t in ts], ring, pool, BEYOND_CANDIDATES)
+              if max(abs(p[1]), abs(p[2])) > k and ring[ts.index((p[1], p[2])), p[0]] >= floor]
+    if not starts:
+        return None
+    climber = _Climber(WindowEvaluator(big), kb)
+    out = None
+    for th, a, b in starts:
+        end = climber.climb(th, (a, b), max(1, pool // 2))
+        if end is None:
+            continue
+        (v, _, _), th_e, t_e = end
+        if (max(abs(t_e[0]), abs(t_e[1])) > k and v > best_value and (out is None or v > out[2])
+                and _apart(problem, (th_e, t_e), answer)):
+            out = (float(th_e), big.offset_m(*t_e), float(v))
+    return out
 
 
 # --- sub-cell refinement -----------------------------------------------------------------------------

@@ -438,6 +438,49 @@ def test_rotation_and_translation_recovered_with_a_rough_center(kind, seed):
     al = search(p, "fast")
     assert abs(angle_diff_deg(al.theta_deg, c.theta_deg)) <= 0.5, (al.theta_deg, c.theta_deg)
     assert math.dist(al.translation_m, c.translation_m) <= 0.05, (al.translation_m, c.translation_m)
+    assert al.beyond is None  # the truth is inside the window: the guard finds nothing better outside
+
+
+# The guard beyond the window: "views" seeds with the moving center off by up to 1.8 × the window per axis.
+def test_the_guard_finds_the_truth_outside_the_window():
+    """Every case whose true translation lies outside ±0.5 m but inside the guard's ±1.0 m (less a cell),
+    and whose in-window answer is therefore another peak (more than 10° or 0.2 m from the truth): the
+    guard reports the truth (θ within 1°, t within 0.1 m), exactly valued, above the in-window best."""
+    checked = 0
+    for seed in range(24):
+        c = window_case(seed, "views", roi_m=(8.0, 8.0), window_m=(0.5, 0.5), error_frac=1.8)
+        if not 0.5 < max(abs(v) for v in c.translation_m) <= 0.95:
+            continue
+        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 0.5, True)
+        al = search(p, "fast")
+        if abs(angle_diff_deg(al.theta_deg, c.theta_deg)) <= 10.0 and math.dist(al.translation_m,
+                                                                                c.translation_m) <= 0.2:
+            continue  # the in-window answer is the truth's own peak, cut by the window's edge
+        checked += 1
+        assert al.beyond is not None, seed
+        th, t, v = al.beyond
+        assert abs(angle_diff_deg(th, c.theta_deg)) <= 1.0, (seed, th, c.theta_deg)
+        assert math.dist(t, c.translation_m) <= 0.1, (seed, t, c.translation_m)
+        # exact in what it reports: the value at (θ, t) on the wider window, above the in-window best
+        wide = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 1.0)
+        cells = tuple(int(round(x / 0.05)) for x in t)
+        assert max(abs(x) for x in cells) > p.window_cells
+        assert WindowEvaluator(wide).evaluate(th, [cells])[0] == v
+        assert v > al.profile.max() - 1e-12
+    assert checked >= 12, checked  # 16 of the 24 seeds
+
+
+@pytest.mark.parametrize("seed", [0, 4, 10])
+def test_the_guards_finding_is_bounded_by_the_exhaustive_one(seed):
+    """On small problems: whatever the fast guard reports, the exhaustive one (the reference search's
+    ``beyond``: the best coarse (θ, t) of the whole ring between the window and twice it) reports too,
+    scoring at least as much. (The exhaustive one also reports weak peaks the fast guard does not climb.)"""
+    c = window_case(seed, "views", roi_m=(2.4, 2.4), window_m=(0.2, 0.2), error_frac=1.8)
+    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 2.4, "similarity", 0.2)
+    fast, ref = search(p, "fast"), search(p, "reference")
+    assert (fast.theta_deg, fast.cells) == (ref.theta_deg, ref.cells)
+    assert fast.beyond is not None and ref.beyond is not None
+    assert ref.beyond[2] >= fast.beyond[2] > ref.profile.max()
 
 
 def test_without_the_window_the_same_rough_centers_cost_the_rotation():

@@ -14,6 +14,7 @@ from circsim.offline import OfflineBench, OfflineSettings, method_params
 from circsim.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_from_dict
 from circsim.sim import Simulation, merge_params, truth_translation
 from circsim.sweep import RunTask, flatten
+from merger.search import angle_diff_deg
 
 NAMES = ("Lyon", "Auckland", "Nevers")
 
@@ -217,3 +218,31 @@ def test_windowed_runs_are_deterministic_per_seed():
     a = metrics()
     assert a == metrics()
     assert any(r["final_translation_error_m"] for r in a["robots"].values())
+
+
+class _Cycles:
+    """Collects every merge cycle of a run."""
+
+    def __init__(self):
+        self.cycles = []
+
+    def __getattr__(self, hook):
+        return (lambda *a: self.cycles.append(a[0])) if hook == "on_merge_cycle" else (lambda *a: None)
+
+
+def test_a_center_error_beyond_the_windows_reach_is_refused_not_merged_falsely():
+    """scene1 with centers off by 0.35 m and a ±0.5 m window: two robots' errors add up to more than the
+    window, so for some pairs the true translation lies outside it, and the best alignment inside is the
+    point-symmetric room's half turn (before the guard, seed 2 accepted 104 such false merges in 30 s).
+    The guard (merger.window.beyond_window) finds the better alignment outside the window and the cycle is
+    refused with a reason naming it: 0 false merges."""
+    sc = scene("scene1", "duration_s=8", "center_error.magnitude_m=0.35", "merger.window_m=0.5", "seed=2")
+    obs = _Cycles()
+    res = Simulation(sc, [obs]).run()
+    assert res.false_merges == 0
+    refused = [c for c in obs.cycles if not c.result.accepted and "beyond the window" in c.result.reason]
+    assert refused, [c.result.reason for c in obs.cycles]
+    # what the guard found is the truth: the refusal names the true rotation of the misplaced map
+    c = refused[0]
+    th = float(c.result.reason.split("(θ ")[1].split("°")[0])
+    assert min(abs(angle_diff_deg(th, t)) for t in c.truth_deg.values()) <= 2.0, (c.result.reason, c.truth_deg)

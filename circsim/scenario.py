@@ -322,7 +322,7 @@ _OBJECTS = {
 
 def _object(v, path):
     kind = v.get("type") if isinstance(v, dict) else None
-    if kind not in _OBJECTS:
+    if not isinstance(kind, str) or kind not in _OBJECTS:  # (a list or mapping is not a type name)
         raise Invalid(join(path, "type") if isinstance(v, dict) else path,
                       f"expected an object type, one of {', '.join(map(repr, _OBJECTS))}, got {kind!r}")
     return _OBJECTS[kind](v, path)

@@ -75,7 +75,7 @@ def choice(*options):
     exp = "one of " + ", ".join(repr(o) for o in options)
 
     def check(v, path):
-        if v not in options:
+        if isinstance(v, list | dict) or v not in options:
             raise bad(path, exp, v)
         return v
     return check
@@ -85,7 +85,7 @@ def registered(registry: dict, what: str):
     """A name that must be a key of ``registry`` when the value is checked (so methods registered
     after import, e.g. by a plug-in, are accepted)."""
     def check(v, path):
-        if v not in registry:
+        if not isinstance(v, str) or v not in registry:
             raise bad(path, f"a registered {what}: one of " + ", ".join(repr(o) for o in sorted(registry)), v)
         return v
     return check

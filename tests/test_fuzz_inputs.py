@@ -191,7 +191,9 @@ def test_example_counts_are_what_the_readme_says():
     assert f"{total} generated inputs" in readme
 
 
-@pytest.mark.parametrize("text", ["seed: .nan", "duration_s: -.inf", "robots: {names: [A, A]}"])
+@pytest.mark.parametrize("text", ["seed: .nan", "duration_s: -.inf", "robots: {names: [A, A]}",
+                                  "world: {objects: [{type: []}]}", "merger: {method: [fast]}",
+                                  "robots: {heading: {a: 1}}", "merger: {measure: [ncc]}"])
 def test_a_few_known_bad_files(tmp_path, text):
     (tmp_path / "s.yaml").write_text(text)
     with pytest.raises(ScenarioError):

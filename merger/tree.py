@@ -12,7 +12,9 @@ pair searches, every other pair is reused from the previous cycle. The team map 
 2. every verified pair that is *not* a tree edge is a cycle of the graph: its own alignment must agree
    with the composed placements (within 10° and 0.2 m, the ambiguity rule's distances), otherwise the
    cycle is rejected as inconsistent — a false pair closes a loop that the true pairs do not;
-3. every two placed maps are verified again on map 0's frame with the composed placements (``checks``,
+3. with those loops, the placements are adjusted by least squares over every verified pair (a small
+   pose graph, :func:`adjust`): a chain's small per-pair errors no longer add up along the tree;
+4. every two placed maps are verified again on map 0's frame with the composed placements (``checks``,
    the evidence); a tree edge must pass there too. Other pairs are not required to reach ν_min: their
    evidence is the loop consistency of step 2. Two robots on opposite sides of a large circle see
    opposite faces of the same objects and reach ν ≈ ν_min at best even when placed exactly: the thesis's
@@ -132,6 +134,43 @@ def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], Pa
     return out
 
 
+def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]) -> dict[int, Placement]:
+    """Least-squares placements over every verified pair between placed maps (a small pose graph).
+
+    A tree composes each pair's small error along its path: on a ring of six robots the far end of a
+    five-edge chain was off by 2° while every pair was within 0.5°. With the loops closed by verified
+    non-tree pairs (already found consistent within 10° and 0.2 m), the angles minimise
+    Σ ν_ij (θ_j − θ_i − θ_ij)² (linearised about the tree's angles, map 0 fixed), then the translations
+    Σ ν_ij |t_j − t_i − R(θ_i) t_ij|² given the angles. Without loops this is the tree's placement."""
+    idx = {k: n for n, k in enumerate(k for k in place if k != 0)}
+    edges = [(i, j, al, ver.nu) for (i, j), (al, ver) in pairs.items()
+             if ver.passed and i in place and j in place]
+    if len(edges) <= len(idx) or not idx:  # a tree: nothing to adjust
+        return place
+    a = np.zeros((len(edges), len(idx)))
+    b = np.zeros(len(edges))
+    for r, (i, j, al, nu) in enumerate(edges):
+        w = math.sqrt(max(nu, 1e-6))
+        for k, sign in ((j, 1.0), (i, -1.0)):
+            if k in idx:
+                a[r, idx[k]] += sign * w
+        b[r] = w * angle_diff_deg(al.theta_deg, place[j][0] - place[i][0])  # wrapped residual of the tree
+    delta = np.linalg.lstsq(a, b, rcond=None)[0]
+    theta = {k: place[k][0] + (delta[idx[k]] if k in idx else 0.0) for k in place}
+    at = np.zeros((2 * len(edges), 2 * len(idx)))
+    bt = np.zeros(2 * len(edges))
+    for r, (i, j, al, nu) in enumerate(edges):
+        w = math.sqrt(max(nu, 1e-6))
+        for k, sign in ((j, 1.0), (i, -1.0)):
+            if k in idx:
+                at[2 * r, 2 * idx[k]] += sign * w
+                at[2 * r + 1, 2 * idx[k] + 1] += sign * w
+        bt[2 * r:2 * r + 2] = w * (rotation(theta[i]) @ np.asarray(al.translation_m, np.float64))
+    tt = np.linalg.lstsq(at, bt, rcond=None)[0]
+    return {k: (0.0, ORIGIN) if k == 0 else
+            (wrap_deg(theta[k]), (float(tt[2 * idx[k]]), float(tt[2 * idx[k] + 1]))) for k in place}
+
+
 def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
                reuse: dict | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
@@ -166,6 +205,9 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)][1].nu, -k))
         place[best] = relative(pairs[(0, best)][0], reverse=False)
         links = [(0, best)]
+    inconsistent = inconsistencies(place, pairs, tree, maps)
+    if not inconsistent:
+        place = adjust(place, pairs)
     order = list(place)  # breadth-first: map 0 first
     sub = [maps[k] for k in order]
     sub_place = {s: place[k] for s, k in enumerate(order)}
@@ -181,7 +223,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
             failed.append(v.reason)
     if any(not pairs[ij][1].passed for ij in linked):  # the fallback pair of an unlinked map 0
         failed += [pairs[ij][1].reason for ij in linked if not pairs[ij][1].passed]
-    failed += inconsistencies(place, pairs, tree, maps)
+    failed += inconsistent
     steps = tuple((maps[b].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})

@@ -152,3 +152,25 @@ def test_hall_of_four_robots_every_robot_places_every_teammate():
     assert res.false_merges == 0 and res.all_merged()
     for r in res.robots.values():
         assert r.first_pair_merge_s <= r.first_merge_s and r.teammates_placed_final == 3
+
+
+def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
+    """Four maps on a ring, true angles 0/90/180/270°, each chain pair off by +0.5°; the closing pair is
+    exact. The tree (by ν) is the chain, whose far end is off by 1.5°; least squares spreads it."""
+    from merger.tree import adjust, compose_tree
+
+    def ver(nu):
+        return Verification(nu, Counts(1000, 100), True)
+
+    pairs = {(0, 1): (_al(90.5, (0.0, 0.0)), ver(0.9)), (1, 2): (_al(90.5, (0.0, 0.0)), ver(0.9)),
+             (2, 3): (_al(90.5, (0.0, 0.0)), ver(0.9)), (0, 3): (_al(270.0, (0.0, 0.0)), ver(0.6))}
+    tree = spanning_tree(4, {k: v[1].nu for k, v in pairs.items()})
+    assert (0, 3) not in tree
+    place, _ = compose_tree(4, tree, pairs)
+    assert abs(angle_diff_deg(place[3][0], 270.0) - 1.5) < 1e-9
+    adjusted = adjust(place, pairs)
+    assert abs(angle_diff_deg(adjusted[3][0], 270.0)) < 0.6
+    assert all(abs(angle_diff_deg(adjusted[k][0], 90.0 * k)) < 0.6 for k in range(4))
+    assert adjusted[0] == (0.0, (0.0, 0.0))
+    chain_only = {k: v for k, v in pairs.items() if k != (0, 3)}
+    assert adjust(place, chain_only) == place

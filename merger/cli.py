@@ -110,7 +110,11 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--center-moving", metavar="X,Y", help="common center X,Y in MOVING's frame, when it differs")
     add_merge_options(a)
     m = sub.add_parser("merge", help="merge N ≥ 2 maps in all orders and write the verified result")
-    m.add_argument("maps", type=Path, nargs="+", help="maps (map_server YAML); results in the first one's frame")
+    m.add_argument("maps", type=Path, nargs="*", help="maps (map_server YAML); results in the first one's frame")
+    m.add_argument("--bag", type=Path, metavar="BAG", help="read the maps from a ROS 2 bag instead (the last "
+                   "nav_msgs/msg/OccupancyGrid of each --topics topic; needs the bag extra: rosbags)")
+    m.add_argument("--topics", metavar="T1,T2,...", help="with --bag: the map topics, e.g. /r1/map,/r2/map,/r3/map "
+                   "(results in the first one's frame; maps named r1, r2, ...)")
     m.add_argument("--center", action="append", required=True, metavar="X,Y",
                    help="common center X,Y: once for all maps, or once per map in order")
     m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
@@ -219,7 +223,7 @@ def map_names(paths: list[Path]) -> list[str]:
 
 def merge_inputs(paths: list[Path], centers: list[str]) -> list[MapInput]:
     if len(paths) < 2:
-        raise UsageError("merge: expected at least two maps")
+        raise UsageError("merge: expected at least two maps (map_server YAML files, or --bag BAG --topics ...)")
     if len(centers) not in (1, len(paths)):
         raise UsageError(f"--center: expected once or once per map ({len(paths)}), got {len(centers)}")
     cs = [parse_xy(c, "--center") for c in centers] * (len(paths) if len(centers) == 1 else 1)
@@ -227,6 +231,25 @@ def merge_inputs(paths: list[Path], centers: list[str]) -> list[MapInput]:
     grids = [load_map(p) for p in paths]
     check_same_resolution(paths, grids)
     return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)]
+
+
+def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str]) -> list[MapInput]:
+    """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot."""
+    from .bagio import read_bag_maps, topic_names
+
+    if maps:
+        raise UsageError("--bag: give the maps either as files or as --bag with --topics, not both")
+    topics = [t.strip() for t in (topics_arg or "").split(",") if t.strip()]
+    if len(topics) < 2:
+        raise UsageError(f"--topics: expected at least two map topics T1,T2,..., got {topics_arg!r}")
+    if len(set(topics)) != len(topics):
+        raise UsageError(f"--topics: a topic is given twice in {topics_arg!r}")
+    if len(centers) not in (1, len(topics)):
+        raise UsageError(f"--center: expected once or once per topic ({len(topics)}), got {len(centers)}")
+    cs = [parse_xy(c, "--center") for c in centers] * (len(topics) if len(centers) == 1 else 1)
+    grids = read_bag_maps(bag, topics)
+    check_same_resolution([f"{bag}:{t}" for t in topics], [grids[t] for t in topics])
+    return [MapInput(n, grids[t], c) for n, t, c in zip(topic_names(topics), topics, cs, strict=True)]
 
 
 def check_same_resolution(paths: list[Path], grids) -> None:
@@ -298,7 +321,10 @@ def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]
 
 def cmd_merge(args) -> int:
     params = params_from(args)
-    maps = merge_inputs(args.maps, args.center)
+    if args.topics and not args.bag:
+        raise UsageError("--topics: only with --bag BAG")
+    maps = (bag_inputs(args.bag, args.topics, args.maps, args.center) if args.bag
+            else merge_inputs(args.maps, args.center))
     ensure_output_dir(args.output.parent, "-o")
     res = merge_team(maps, params)
     report_merge(res, args.json)

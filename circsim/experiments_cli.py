@@ -149,27 +149,19 @@ def _offline(scenarios, settings, args) -> int:
     return 0
 
 
-def save_first_merge(r, path: Path, *, margin_cells: int = 10, scale: int = 2) -> Path:
-    """The thesis-style overlay (fig. 3.15 colours) of a first valid merge, cropped to the known cells."""
+def save_first_merge(r, path: Path, *, cell_px: int = 2) -> Path:
+    """The thesis-style overlay (fig. 3.15 colours) of a first valid merge: cropped to the known cells,
+    with its scene, method and ±φ in the title, a legend of robot colours and a 1 m scale bar."""
     import cv2
-    import numpy as np
 
-    from merger.overlay import overlay_rgb
+    from merger.overlay import overlay_picture
 
     fm = r.first_merge
     names = list(fm.layers)
-    states = [fm.layers[n].states for n in names]
-    rgb = overlay_rgb(states, names)
-    rows, cols = np.nonzero(np.any(np.stack(states) > 0, axis=0))
-    if rows.size:
-        r0, r1 = max(rows.min() - margin_cells, 0), rows.max() + margin_cells + 1
-        c0, c1 = max(cols.min() - margin_cells, 0), cols.max() + margin_cells + 1
-        rgb = rgb[r0:r1, c0:c1]
-    img = cv2.cvtColor(np.ascontiguousarray(np.flipud(rgb)), cv2.COLOR_RGB2BGR)  # row 0 = lowest y → bottom
-    img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
-    cv2.putText(img, f"{r.scene} {r.method} +-{r.first_correct_phi_deg:g} deg (seed {r.seed})", (6, 18),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
-    ok, png = cv2.imencode(".png", img)
+    title = f"{r.scene} {r.method} +-{r.first_correct_phi_deg:g} deg (seed {r.seed})"
+    rgb = overlay_picture([fm.layers[n].states for n in names], names, fm.layers[names[0]].resolution,
+                          title=title, cell_px=cell_px)
+    ok, png = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     if ok:
         write_files({path: png.tobytes()})
     return path
@@ -273,10 +265,11 @@ def cmd_sweep(args) -> int:
     if rows:
         paths = write_tables(rows, summary, args.out)
         if not args.no_plots:
-            from .sweep_plot import plot_sweep
+            from .sweep_plot import choose_axes, plot_sweep
 
-            line_keys = [a.key for a in axes if a.key != "center_error.magnitude_m"]
-            paths.append(plot_sweep(rows, line_keys, args.out / "sweep.png", title=f"sweep {base.name}"))
+            x_key, line_keys = choose_axes([a.key for a in axes])
+            paths.append(plot_sweep(rows, line_keys, args.out / "sweep.png", title=f"sweep {base.name}",
+                                    x_key=x_key))
         print(format_summary(summary, axes))
         print("written: " + ", ".join(str(p) for p in [args.out / "runs.jsonl", *paths]))
     if interrupted:

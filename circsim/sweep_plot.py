@@ -1,4 +1,5 @@
-"""Plots of a sweep's rows (matplotlib, Agg): metrics vs center error, one line per other setting.
+"""Plots of a sweep's rows (matplotlib, Agg): metrics vs a swept key (center error when it is swept, else
+the first ``--grid`` key), one line per other setting; ticks at the swept values, legend below the panels.
 
 Each panel shows, per x value, the median over seeds and the interquartile band; the "every robot
 merged" panel shows the fraction of runs that did. Runs in which no robot merged have no first-merge
@@ -36,14 +37,33 @@ def _band(values, fraction: bool = False):
     return np.percentile(v, 25), np.median(v), np.percentile(v, 75)
 
 
-def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str = "") -> Path:
-    """A 2×3 figure of :data:`PANELS` vs center error; lines by the values of ``line_keys``."""
+def choose_axes(grid_keys: list[str]) -> tuple[str, list[str]]:
+    """(x-axis key, line keys) for a sweep over ``grid_keys``: center error if swept, else the first key."""
+    if not grid_keys or X_KEY in grid_keys:
+        return X_KEY, [k for k in grid_keys if k != X_KEY]
+    return grid_keys[0], grid_keys[1:]
+
+
+def _x_position(values: list) -> tuple[dict, list, list]:
+    """({value as JSON: x}, ticks, tick labels): numbers at their value; anything else (e.g. method
+    names) at 0, 1, 2, ... in label order."""
+    if all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+        xs = sorted(set(values))
+        return {json.dumps(v): float(v) for v in xs}, [float(v) for v in xs], [f"{v:g}" for v in xs]
+    labels = sorted({json.dumps(v) for v in values})
+    pos = {lab: float(i) for i, lab in enumerate(labels)}
+    return pos, list(pos.values()), [lab.strip('"') for lab in labels]
+
+
+def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str = "", x_key: str = X_KEY) -> Path:
+    """A 2×3 figure of :data:`PANELS` vs ``x_key``; lines by the values of ``line_keys``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    xs = sorted({r[X_KEY] for r in rows})
+    xmap, ticks, tick_labels = _x_position([r.get(x_key) for r in rows])
+    xs = sorted(set(xmap.values()))
     lines: dict[str, list[dict]] = {}
     for r in rows:
         label = ", ".join(f"{k}={json.dumps(r.get(k))}" for k in line_keys) or "all runs"
@@ -53,7 +73,8 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
         for k, (label, rs) in enumerate(sorted(lines.items())):
             pts = []
             for x in xs:
-                b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs if r[X_KEY] == x],
+                b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs
+                           if xmap[json.dumps(r.get(x_key))] == x],
                           fraction=metric in FRACTIONS)
                 if b is not None:
                     pts.append((x, *b))
@@ -63,7 +84,10 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
             colour = f"C{k % 10}"
             ax.plot(x, med, "o-", color=colour, label=label)
             ax.fill_between(x, lo, hi, color=colour, alpha=0.2, linewidth=0)
-        ax.set_xlabel("center error [m]")
+        ax.set_xlabel("center error [m]" if x_key == X_KEY else x_key)
+        ax.set_xticks(ticks if len(ticks) <= 12 else ticks[::max(1, len(ticks) // 12)])
+        ax.set_xticklabels(tick_labels if len(ticks) <= 12 else tick_labels[::max(1, len(ticks) // 12)],
+                           rotation=30 if max(map(len, tick_labels), default=0) > 4 else 0, fontsize=8)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
         if metric == "top_error_deg.median":
@@ -74,7 +98,12 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
         fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4), fontsize=9)
     seeds = len({r["seed"] for r in rows})
     fig.suptitle(f"{title}  (median and IQR over {seeds} seeds)".strip())
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
+    import io
+
+    from merger.mapio import write_files
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=90, format="png")
     plt.close(fig)
-    return path
+    write_files({Path(path): buf.getvalue()})  # atomic, like every other output
+    return Path(path)

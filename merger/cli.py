@@ -310,8 +310,19 @@ def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path,
         return {}
     files = map_files(merged, out)
     y = next(p for p in files if p.suffix == ".yaml")
-    files[y.with_name(y.stem + "_overlay.png")] = overlay_png(layers, [m.name for m in maps])
+    files[y.with_name(y.stem + "_overlay.png")] = overlay_png(layers, [m.name for m in maps],
+                                                             title=overlay_title(res))
     return files
+
+
+def overlay_title(res) -> str:
+    """One ASCII line for the overlay picture (OpenCV's fonts have no θ, ν, →): the order shown, each
+    map's angle, the ν values and the verdict."""
+    o = res.chosen or res.top
+    th = ", ".join(f"{k} {v:.1f}" for k, v in o.theta_deg.items() if k != res.frame)
+    nus = " ".join(f"{v:.2f}" for v in o.nu.values())
+    verdict = "ACCEPTED" if o.accepted else f"REJECTED, written with --force ({o.reason})"
+    return f"{'>'.join(o.order)}  theta deg: {th}  nu: {nus}  {verdict}"
 
 
 def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]:

@@ -28,7 +28,7 @@ import numpy as np
 import yaml
 
 from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid, states_from_ros
-from .overlay import overlay_rgb
+from .overlay import overlay_picture
 
 PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
 MODES = ("trinary", "scale", "raw")
@@ -308,15 +308,17 @@ def save_map(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> tuple[
     return yaml_path, img_path
 
 
-def overlay_png(layers: list[OccupancyGrid], names: list[str]) -> bytes:
-    """The thesis-style colour overlay (see :func:`merger.overlay.overlay_rgb`) encoded as PNG."""
-    rgb = overlay_rgb([g.states for g in layers], names)
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(np.flipud(rgb)), cv2.COLOR_RGB2BGR))
+def overlay_png(layers: list[OccupancyGrid], names: list[str], *, title: str = "", cell_px: int | None = None) -> bytes:
+    """The thesis-style colour overlay as a PNG for people (:func:`merger.overlay.overlay_picture`: cropped to
+    the known cells, 4 px per cell, ``title``, legend of robot colours, 1 m scale bar)."""
+    rgb = overlay_picture([g.states for g in layers], names, layers[0].resolution, title=title, cell_px=cell_px)
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 image as PNG
         raise MapFileError("cannot encode the overlay as PNG")
     return buf.tobytes()
 
 
-def save_overlay(layers: list[OccupancyGrid], names: list[str], path) -> Path:
-    """Write the thesis-style colour overlay (see :func:`merger.overlay.overlay_rgb`) as a PNG."""
-    return write_files({Path(path): overlay_png(layers, names)})[0]
+def save_overlay(layers: list[OccupancyGrid], names: list[str], path, *, title: str = "",
+                 cell_px: int | None = None) -> Path:
+    """Write the thesis-style colour overlay as a PNG (see :func:`overlay_png`)."""
+    return write_files({Path(path): overlay_png(layers, names, title=title, cell_px=cell_px)})[0]

@@ -42,3 +42,60 @@ def overlay_rgb(layers: list[np.ndarray], names: list[str]) -> np.ndarray:
     out[seen] = np.rint(acc[seen] / known[seen, None]).astype(np.uint8)
     out[~seen] = UNKNOWN_RGB
     return out
+
+
+def overlay_picture(layers: list[np.ndarray], names: list[str], resolution: float, *, title: str = "",
+                    cell_px: int | None = None, max_px: int = 2000, margin_cells: int = 10) -> np.ndarray:
+    """The overlay as a picture for people: (H, W, 3) uint8 RGB, top row = max y (as an image is shown).
+
+    Cropped to the cells some robot knows (plus ``margin_cells``), each cell ``cell_px`` pixels (default:
+    4, fewer when the picture would exceed ``max_px``), under a ``title`` line (e.g. θ, ν and the verdict),
+    over a legend of each robot's occupied and free colours and a 1 m scale bar.
+    """
+    import cv2
+
+    rgb = overlay_rgb(layers, names)
+    rows, cols = np.nonzero(np.any(np.stack(layers) > 0, axis=0))
+    if rows.size:
+        r0, r1 = max(rows.min() - margin_cells, 0), rows.max() + margin_cells + 1
+        c0, c1 = max(cols.min() - margin_cells, 0), cols.max() + margin_cells + 1
+        rgb = rgb[r0:r1, c0:c1]
+    h, w = rgb.shape[:2]
+    px = cell_px or max(1, min(4, max_px // max(h, w, 1)))
+    body = cv2.resize(np.ascontiguousarray(np.flipud(rgb)), None, fx=px, fy=px, interpolation=cv2.INTER_NEAREST)
+    font, white, black = cv2.FONT_HERSHEY_SIMPLEX, (255, 255, 255), (0, 0, 0)
+    width = max(body.shape[1], 420)
+    # legend: one row of swatches (occupied, free) and names; then the scale bar
+    x, lines, line = 8, [], []
+    for n, (occ, free) in zip(names, colours_for(names), strict=True):
+        tw = cv2.getTextSize(n, font, 0.45, 1)[0][0]
+        need = 2 * 14 + 6 + tw + 18
+        if line and x + need > width:
+            lines.append(line)
+            line, x = [], 8
+        line.append((x, n, occ, free))
+        x += need
+    if line:
+        lines.append(line)
+    title_h, legend_h = (24 if title else 0), 22 * len(lines) + 30
+    out = np.full((title_h + body.shape[0] + legend_h, width, 3), 255, np.uint8)
+    out[title_h:title_h + body.shape[0], :body.shape[1]] = body
+    if title:
+        scale = min(0.5, 0.5 * width / max(cv2.getTextSize(title, font, 0.5, 1)[0][0], 1))
+        cv2.putText(out, title, (6, 17), font, scale, black, 1, cv2.LINE_AA)
+    y = title_h + body.shape[0] + 6
+    for line in lines:
+        for x, n, occ, free in line:
+            cv2.rectangle(out, (x, y), (x + 13, y + 13), tuple(int(v) for v in occ), -1)
+            cv2.rectangle(out, (x + 14, y), (x + 27, y + 13), tuple(int(v) for v in free), -1)
+            cv2.putText(out, n, (x + 33, y + 12), font, 0.45, black, 1, cv2.LINE_AA)
+        y += 22
+    bar = int(round(px / resolution))  # pixels per metre
+    y += 8
+    cv2.rectangle(out, (8, y), (8 + bar, y + 6), black, -1)
+    label = f"1 m   ({px} px per {resolution * 100:g} cm cell; occupied darker, free lighter, grey unknown)"
+    cv2.putText(out, label, (14 + bar, y + 7), font, 0.4, black, 1, cv2.LINE_AA)
+    if bar > width - 16:  # a coarse picture of a big map: the bar does not fit, say so instead
+        out[y:y + 7] = white
+        cv2.putText(out, f"1 m = {bar} px", (8, y + 7), font, 0.4, black, 1, cv2.LINE_AA)
+    return out

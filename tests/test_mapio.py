@@ -86,10 +86,30 @@ def test_overlay_png_colours(tmp_path):
     a = OccupancyGrid(np.array([[O, F, U]], np.uint8))
     b = OccupancyGrid(np.array([[U, U, U]], np.uint8))
     p = save_overlay([a, b], ["Lyon", "Nevers"], tmp_path / "o.png")
-    rgb = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)
-    assert rgb[0, 0].tolist() == [200, 0, 200]  # Lyon occupied: magenta
-    assert rgb[0, 1].tolist() == [170, 235, 170]  # Lyon free: light green
-    assert rgb[0, 2].tolist() == [128, 128, 128]  # unknown to all: grey
+    rgb = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)  # 4 px per cell, no title: cells from (0, 0)
+    assert rgb[0, 0].tolist() == rgb[3, 3].tolist() == [200, 0, 200]  # Lyon occupied: magenta
+    assert rgb[0, 4].tolist() == [170, 235, 170]  # Lyon free: light green
+    assert rgb[0, 8].tolist() == [128, 128, 128]  # unknown to all: grey
+
+
+def test_overlay_picture_title_legend_scale_bar(tmp_path):
+    """Issue 12: upscaled cells, a title line, each robot's colours in a legend and a 1 m scale bar."""
+    from merger.overlay import THESIS_COLOURS, overlay_picture
+
+    states = np.zeros((60, 80), np.uint8)
+    states[10:50, 10:70] = F
+    states[10, 10:70] = O
+    plain = overlay_picture([states], ["Lyon"], 0.05)
+    titled = overlay_picture([states], ["Lyon"], 0.05, title="theta 12.0 deg  nu 0.71  ACCEPTED")
+    assert titled.shape[0] == plain.shape[0] + 24 and titled.shape[1] == plain.shape[1]
+    # cropped to the known cells + 10 cells of margin, 4 px per cell: 60 x 80 cells → 240 x 320 px
+    assert plain.shape[1] == max(80 * 4, 420) and plain.shape[0] > 60 * 4
+    legend = plain[60 * 4:]
+    occ, free = THESIS_COLOURS["Lyon"]
+    assert (legend == occ).all(axis=2).sum() >= 13 * 13 and (legend == free).all(axis=2).sum() >= 13 * 13
+    bar_rows = np.nonzero((legend == 0).all(axis=2).sum(axis=1) >= 80)[0]  # 1 m = 20 cells = 80 px of black
+    assert bar_rows.size >= 5
+    assert titled[:24].min() == 0  # the title's text is drawn
 
 
 def test_yaml_1_2_exponent_numbers(tmp_path):

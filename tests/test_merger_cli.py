@@ -350,3 +350,26 @@ def test_demo_writes_centers_and_the_command_that_re_merges(tmp_path, capsys):
         assert abs(angle_diff_deg(res["chosen"]["theta_deg"][n], t["theta_deg"])) <= 0.5
         assert math.dist(res["chosen"]["translation_m"][n], t["translation_m"]) <= 0.05
     assert (tmp_path / "d" / "remerged.yaml").exists() and (tmp_path / "d" / "remerged_overlay.png").exists()
+
+
+def test_overlay_picture_title_names_the_order_angles_nu_and_verdict(saved, tmp_path):
+    import cv2
+
+    from merger.cli import overlay_title
+    from merger.team import MergeParams, merge_team
+
+    d, paths, centers, truth = saved
+    maps = [MapInput(p.stem, load_map(p), tuple(map(float, c.split(",")))) for p, c in zip(paths, centers,
+                                                                                         strict=True)]
+    res = merge_team(maps, MergeParams())
+    title = overlay_title(res)
+    assert title.isascii() and title.endswith("ACCEPTED") and ">".join(res.chosen.order) in title
+    assert f"{res.chosen.theta_deg[maps[1].name]:.1f}" in title
+    rejected = merge_team(maps, MergeParams(nu_min=0.99))
+    assert "REJECTED, written with --force" in overlay_title(rejected)
+    args = ["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m")]
+    assert main(args) == 0
+    img = cv2.imread(str(tmp_path / "m_overlay.png"))
+    g = load_map(tmp_path / "m.yaml")
+    assert img.shape[1] >= 420 and img.shape[0] > 24  # upscaled and cropped, with its title and legend
+    assert max(img.shape[:2]) <= 4 * max(g.shape) + 24 + 200

@@ -85,6 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("scenarios", help="list the bundled scenarios (--show NAME: one in full)")
     sc.add_argument("--show", metavar="SCENARIO", help="print a scenario (bundled name or file) with every key "
                                                        "and its value, defaults filled in, as YAML")
+    sc.add_argument("--reference", action="store_true", help="print the scenario reference (every key, its "
+                                                             "default and what is expected; docs/scenario-reference.md)")
     v = sub.add_parser("view", help="open a recorded run (.rrd) in the rerun viewer")
     v.add_argument("rrd", type=Path)
     v.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
@@ -236,6 +238,11 @@ def cmd_run(args) -> int:
 def cmd_scenarios(args) -> int:
     from .scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
 
+    if args.reference:
+        from .scenario_doc import scenario_reference
+
+        print(scenario_reference(), end="")
+        return 0
     if args.show:
         import yaml
 

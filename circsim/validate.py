@@ -43,6 +43,7 @@ def number(gt=None, ge=None, lt=None, le=None):
             raise bad(path, "a number" + bounds, v)
         return float(v)
     check.bounds = bounds
+    check.expected = "a number" + bounds
     return check
 
 
@@ -55,6 +56,7 @@ def integer(ge=None, le=None):
                 or (le is not None and v > le):
             raise bad(path, exp, v)
         return int(v)
+    check.expected = exp
     return check
 
 
@@ -63,6 +65,9 @@ def boolean(v, path):
     if not isinstance(v, bool):
         raise bad(path, "true or false", v)
     return v
+
+
+boolean.expected = "true or false"
 
 
 def string(v, path):
@@ -78,6 +83,7 @@ def choice(*options):
         if isinstance(v, list | dict) or v not in options:
             raise bad(path, exp, v)
         return v
+    check.expected = exp
     return check
 
 
@@ -88,7 +94,11 @@ def registered(registry: dict, what: str):
         if not isinstance(v, str) or v not in registry:
             raise bad(path, f"a registered {what}: one of " + ", ".join(repr(o) for o in sorted(registry)), v)
         return v
+    check.expected = f"a registered {what} (" + ", ".join(repr(o) for o in sorted(registry)) + ")"
     return check
+
+
+string.expected = "a string"
 
 
 def optional_path(v, path):
@@ -97,10 +107,14 @@ def optional_path(v, path):
     return v
 
 
+optional_path.expected = "null or a path"
+
+
 def optional(check):
     """``None`` (YAML null) or a value that passes ``check``."""
     def f(v, path):
         return None if v is None else check(v, path)
+    f.expected = f"null or {describe(check)}"
     return f
 
 
@@ -110,6 +124,8 @@ def seq(item, expected: str, min_len: int = 0, length: int | None = None):
         if not isinstance(v, list | tuple) or len(v) < min_len or (length is not None and len(v) != length):
             raise bad(path, expected, v)
         return tuple(item(x, f"{path}[{i}]") for i, x in enumerate(v))
+    check.expected = expected
+    check.item = item
     return check
 
 
@@ -136,7 +152,14 @@ def section(cls, schema: dict, required=()):
             if k not in v:
                 raise Invalid(join(path, k), "missing required key")
         return cls(**{k: schema[k](x, join(path, k)) for k, x in v.items() if k != "type"})
+    check.schema, check.cls, check.required = schema, cls, tuple(required)
+    check.expected = "a mapping"
     return check
+
+
+def describe(check) -> str:
+    """What ``check`` expects, in the words of its error message (for the scenario reference)."""
+    return getattr(check, "expected", None) or "(see the loader)"
 
 
 def join(path: str, key) -> str:

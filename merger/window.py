@@ -66,6 +66,7 @@ POLAR_POOL_MIN = 2  # the approximate stage pools at least 2× (10 cm cells at 5
 POLAR_TARGET_CELLS = 40  # ... and keeps about this many pooled cells across the ROI
 MAX_LATTICE_STEPS = 3  # ... and coarser for wide windows: at most ±3 pooled cells of translation
 WINDOW_CANDIDATES = 5  # approximate peaks climbed exactly
+FIRST_LOOK_STRIDE = 2  # a climb's first look over the start's pooled cell samples every other cell
 NMS_DEG = 4  # peaks closer than this (and within one pooled cell) are one peak
 OPPOSITE_DEG = 20
 
@@ -484,13 +485,15 @@ class _Climber:
         self.ev, self.k, self.rank = ev, k, _tie_rank(k)
         self.walked: set = set()  # points a climb stepped from (r = 1): from there it is the same climb
 
-    def best_in(self, th: int, a: int, b: int, r: int):
-        """The best (value, −rank, −θ) of θ ± 1° × the box of half side r about (a, b), in the window."""
+    def best_in(self, th: int, a: int, b: int, r: int, stride: int = 1):
+        """The best (value, −rank, −θ) of θ ± 1° × the box of half side r about (a, b), in the window,
+        on the cells of the box ``stride`` apart (a, b itself included)."""
         k, rank = self.k, self.rank
-        x0, x1, y0, y1 = max(-k, a - r), min(k, a + r), max(-k, b - r), min(k, b + r)
-        gy, gx = np.divmod(np.arange((x1 - x0 + 1) * (y1 - y0 + 1)), x1 - x0 + 1)
-        gx += x0
-        gy += y0
+        xs = np.arange(a - (a - max(-k, a - r)) // stride * stride, min(k, a + r) + 1, stride)
+        ys = np.arange(b - (b - max(-k, b - r)) // stride * stride, min(k, b + r) + 1, stride)
+        gy, gx = np.divmod(np.arange(xs.size * ys.size), xs.size)
+        gx = xs[gx]
+        gy = ys[gy]
         rk = rank[gy + k, gx + k]
         best = None
         for x in ((th - 1) % 360, th, (th + 1) % 360):
@@ -510,7 +513,7 @@ class _Climber:
                 return None
             if r == 1:
                 self.walked.add((th, t))
-            key, x, tt = self.best_in(th, *t, r)
+            key, x, tt = self.best_in(th, *t, r, FIRST_LOOK_STRIDE if r > 1 else 1)
             if (x, tt) == (th, t) and r == 1:
                 break
             th, t, r = x, tt, 1

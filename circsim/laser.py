@@ -42,6 +42,8 @@ class LaserConfig:
     range_max_m, range_min_m : measurable range in metres.
     rate_hz : scan rate (the simulation step is chosen by the scenario's ``dt_s``).
     noise_std_m : standard deviation of additive Gaussian range noise on returns.
+    noise_rel : ... and at least this fraction of the range (σ = max(noise_std_m, noise_rel · r)); the
+        URG-04LX's datasheet accuracy is ±30 mm up to 1 m and ±3% of the range beyond. 0: constant σ.
     dropout : probability that a beam returns an erroneous reading (``NaN``).
     """
 
@@ -52,6 +54,7 @@ class LaserConfig:
     rate_hz: float = 10.0
     noise_std_m: float = 0.01
     dropout: float = 0.0
+    noise_rel: float = 0.0
 
     @property
     def angle_increment(self) -> float:
@@ -232,7 +235,8 @@ def _cast_pymunk(world: World, robot_name: str, x: float, y: float, angles: np.n
 def apply_sensor_model(ideal: np.ndarray, config: LaserConfig, rng: np.random.Generator) -> np.ndarray:
     """Turn exact ranges into readings: range_min, Gaussian noise, clipping and dropout.
 
-    Returns closer than ``range_min`` become ``-inf``; returns get ``N(0, noise_std_m)`` added and are
+    Returns closer than ``range_min`` become ``-inf``; returns get ``N(0, σ)`` added (σ = noise_std_m, or
+    max(noise_std_m, noise_rel · r) with a relative part) and are
     clipped to ``[range_min, range_max]``; with probability ``dropout`` a beam reads ``NaN``.
     The generator is always advanced by the same amount, so a seed gives the same stream whatever
     the noise settings.
@@ -242,7 +246,9 @@ def apply_sensor_model(ideal: np.ndarray, config: LaserConfig, rng: np.random.Ge
     drop = rng.random(r.shape) < config.dropout
     too_close = r < config.range_min_m
     ret = np.isfinite(r) & ~too_close
-    r[ret] = np.clip(r[ret] + config.noise_std_m * noise[ret], config.range_min_m, config.range_max_m)
+    sigma = config.noise_std_m if config.noise_rel <= 0 else np.maximum(config.noise_std_m,
+                                                                         config.noise_rel * r[ret])
+    r[ret] = np.clip(r[ret] + sigma * noise[ret], config.range_min_m, config.range_max_m)
     r[too_close] = -np.inf
     r[drop] = np.nan
     return r

@@ -342,12 +342,13 @@ _ROBOTS = {"names": seq(string, "a list of robot names", 1), "radius_m": _POS,
 _LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
                                "range_max_m": _POS,
                                "range_min_m": _NONNEG, "rate_hz": _POS, "noise_std_m": _NONNEG,
-                               "dropout": number(ge=0, lt=1)})
+                               "dropout": number(ge=0, lt=1), "noise_rel": number(ge=0, lt=1)})
 _SLAM = section(SlamConfig, {
     "resolution_m": _POS, "size_m": _POS,
     "drift": section(DriftConfig, {"xy_m_per_m": _NONNEG, "yaw_deg_per_m": _NONNEG}),
     "log_odds": section(LogOddsConfig, {"hit": _POS, "miss": number(lt=0), "clamp": _POS}),
-    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS})
+    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS,
+    "linear_update_m": _NONNEG, "angular_update_rad": _NONNEG})
 _NETWORK = section(NetworkConfig, {"period_s": _POS, "latency_s": _NONNEG, "jitter_s": _NONNEG,
                                    "loss": number(ge=0, lt=1)})
 _MERGER = section(MergerSettings, {

@@ -58,7 +58,12 @@ class SlamConfig:
     drift : pose-estimate drift.
     log_odds : inverse sensor model.
     occupied_thresh, free_thresh : probability thresholds to ternary (map_server's rule).
-    publish_period_s : how often the robot publishes its map (used by the simulation loop).
+    publish_period_s : how often the robot publishes its map (used by the simulation loop; gmapping's
+        ``map_update_interval``, default 5 s).
+    linear_update_m, angular_update_rad : integrate a scan only after the robot has moved this far or
+        turned this much since the last integrated one (gmapping's ``linearUpdate`` = 1.0 m and
+        ``angularUpdate`` = 0.5 rad by default); the first scan is always integrated. 0 and 0 (the
+        default here): every scan is integrated.
     """
 
     resolution_m: float = 0.05
@@ -68,6 +73,8 @@ class SlamConfig:
     occupied_thresh: float = DEFAULT_OCCUPIED_THRESH
     free_thresh: float = DEFAULT_FREE_THRESH
     publish_period_s: float = 2.0
+    linear_update_m: float = 0.0
+    angular_update_rad: float = 0.0
 
 
 class Slam:
@@ -92,6 +99,7 @@ class Slam:
         self._lut = np.array([0.0, config.log_odds.miss, config.log_odds.hit], np.float32)
         self._drift = np.zeros(3)  # dx, dy (metres, in M_i), dyaw (radians)
         self._last_true: Pose | None = None
+        self._last_integrated: Pose | None = None
         self.distance_m = 0.0
         self.updates = 0
         self._est = Pose(0.0, 0.0, 0.0)
@@ -120,10 +128,25 @@ class Slam:
         self._advance_drift(true_pose_world)
         t = self.true_pose_in_map(true_pose_world)
         self._est = Pose(t.x + self._drift[0], t.y + self._drift[1], _wrap_pi(t.yaw + self._drift[2]))
-        self._integrate(self._est, scan)
-        self.updates += 1
-        self._grid = None
+        if self._due(true_pose_world):
+            self._integrate(self._est, scan)
+            self.updates += 1
+            self._grid = None
         return self._est
+
+    def _due(self, pose: Pose) -> bool:
+        """gmapping's rule: the first scan, then one after moving ``linear_update_m`` or turning
+        ``angular_update_rad`` since the last integrated scan (both 0: every scan)."""
+        c = self.config
+        last = self._last_integrated
+        if last is not None and (c.linear_update_m > 0 or c.angular_update_rad > 0):
+            moved = math.hypot(pose.x - last.x, pose.y - last.y)
+            turned = abs(_wrap_pi(pose.yaw - last.yaw))
+            if not ((c.linear_update_m > 0 and moved >= c.linear_update_m)
+                    or (c.angular_update_rad > 0 and turned >= c.angular_update_rad)):
+                return False
+        self._last_integrated = pose
+        return True
 
     def _advance_drift(self, pose: Pose) -> None:
         ds = 0.0 if self._last_true is None else math.hypot(pose.x - self._last_true.x,

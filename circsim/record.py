@@ -30,6 +30,7 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
                                             length is the translation error |t_ij − t*_ij|
     /merge/<robot>/overlay                  Image: the thesis colour overlay of the aligned maps (cropped*)
     /plots/<robot>/omega                    Scalars: score (ω̃ by default) of every alignment step of every order
+                                            (strategy tree: of each tree edge's pair search)
     /plots/<robot>/nu                       Scalars: ν of the cycle's top hypothesis per pair, and ν_min
     /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
     /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
@@ -406,7 +407,10 @@ class RerunRecorder(Observer):
         base = f"plots/{_part(n)}"
         omega = []
         for o in res.orders:
-            for moving, al in o.steps:
+            for k, (moving, al) in enumerate(o.steps, 1):
+                if getattr(cfg, "strategy", "orders") == "tree":  # the pair searches of the tree's edges
+                    omega.append((f"{al.measure} tree edge {k}", al.score, None))
+                    continue
                 onto = o.order[0] if moving == o.order[1] else "+".join(o.order[:o.order.index(moving)])
                 omega.append((f"{al.measure} {moving}→{onto}", al.score, None))
         self._series(f"{base}/omega", omega)

@@ -178,8 +178,9 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): every pair's
     search and verification, by the versions of its two maps; after the cycle it holds only this cycle's
     pairs. The result has one hypothesis (``orders[0]``): the placed maps in tree order, its ``steps``
-    the tree's pair alignments (child onto parent, in the parent's frame), its ``checks`` the placed
-    pairs verified on map 0's frame."""
+    the tree edges' pair searches as (moving map, alignment) — the later map of the pair in ``maps``
+    onto the earlier one, in that map's frame — and its ``checks`` the placed pairs verified on map 0's
+    frame."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
     t0 = time.perf_counter()
@@ -224,7 +225,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     if any(not pairs[ij][1].passed for ij in linked):  # the fallback pair of an unlinked map 0
         failed += [pairs[ij][1].reason for ij in linked if not pairs[ij][1].passed]
     failed += inconsistent
-    steps = tuple((maps[b].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
+    steps = tuple((maps[max(a, b)].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     chosen, merged, layers = (result, None, {}) if result.accepted else (None, None, {})

@@ -174,3 +174,18 @@ def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
     assert adjusted[0] == (0.0, (0.0, 0.0))
     chain_only = {k: v for k, v in pairs.items() if k != (0, 3)}
     assert adjust(place, chain_only) == place
+
+
+def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
+    from circsim.cli import main
+    from circsim.record import read_recording
+
+    rrd = tmp_path / "hall4.rrd"
+    assert main(["run", "hall4", "--set", "duration_s=10", "--set", "merger.method=fast", "--rrd", str(rrd),
+                 "--quiet"]) == 0
+    rec = read_recording(rrd)
+    for n in ("Lyon", "Auckland", "Nevers", "Oslo"):
+        names = next(r["SeriesLines:names"] for r in rec[f"/plots/{n}/omega"] if r["static"])
+        assert 1 <= len(names) <= 3 and all(x.startswith("similarity tree edge ") for x in names)
+        ev = [r["TextLog:text"][0] for r in rec[f"/events/{n}"] if not r["static"]]
+        assert any(x.startswith("accepted merge") for x in ev)

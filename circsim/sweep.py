@@ -306,8 +306,6 @@ def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: boo
     The folder's ``sweep.json`` records the base scenario (with ``--set`` applied) of the sweep its rows
     belong to; resuming with another (a different ``--set`` or scenario file) would mix two experiments in
     runs.jsonl, so it is refused with the differences named."""
-    from merger.mapio import write_files
-
     out.mkdir(parents=True, exist_ok=True)
     path = out / RUNS_JSONL
     rows = read_rows(path)
@@ -321,10 +319,18 @@ def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: boo
     if overwrite and not resume:
         path.write_text("")
         (out / ERRORS_JSONL).unlink(missing_ok=True)  # the old sweep's failures are not this one's
+        (out / SWEEP_JSON).unlink(missing_ok=True)
         done = set()
-    write_files({out / SWEEP_JSON: json.dumps(ident, indent=1, sort_keys=True, default=str).encode()})
     todo = [t for t in tasks if t.key not in done]
     return todo, len(tasks) - len(todo)
+
+
+def write_sweep_identity(out: Path, tasks: list[RunTask]) -> None:
+    """``sweep.json``: the base scenario the rows of ``out`` belong to (written with the first row)."""
+    from merger.mapio import write_files
+
+    ident = _sweep_identity(tasks)
+    write_files({out / SWEEP_JSON: json.dumps(ident, indent=1, sort_keys=True, default=str).encode()})
 
 
 def _check_same_sweep(out: Path, rows: list[dict], ident: dict) -> None:
@@ -466,23 +472,30 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
     _end_line(out / RUNS_JSONL)
     outcomes = _dask(tasks, dask_address) if dask_address else _local(tasks, min(workers, len(tasks)))
     written = failed = 0
-    with open(out / RUNS_JSONL, "a") as f, tqdm(total=len(tasks), unit="run", desc="sweep",
-                                                   disable=not progress, smoothing=0.1) as bar:
-        for task, row, error in outcomes:
-            if error is not None:
-                failed += 1
-                with open(out / ERRORS_JSONL, "a") as e:
-                    e.write(json.dumps({"run_key": task.key, "grid": dict(task.grid), "seed": task.seed,
-                                        "error": error}) + "\n")
-                bar.write(f"circsim: run {dict(task.grid)} seed {task.seed} failed: {error.splitlines()[-1]}",
-                          file=sys.stderr)
-            elif not row.get("interrupted"):
-                f.write(json.dumps(row) + "\n")
-                f.flush()
-                written += 1
-                if on_row:
-                    on_row(row)
-            bar.update(1)
+    f = None  # runs.jsonl is opened with the first row: a sweep that cannot start writes nothing
+    try:
+        with tqdm(total=len(tasks), unit="run", desc="sweep", disable=not progress, smoothing=0.1) as bar:
+            for task, row, error in outcomes:
+                if error is not None:
+                    failed += 1
+                    with open(out / ERRORS_JSONL, "a") as e:
+                        e.write(json.dumps({"run_key": task.key, "grid": dict(task.grid), "seed": task.seed,
+                                            "error": error}) + "\n")
+                    bar.write(f"circsim: run {dict(task.grid)} seed {task.seed} failed: "
+                              f"{error.splitlines()[-1]}", file=sys.stderr)
+                elif not row.get("interrupted"):
+                    if f is None:
+                        write_sweep_identity(out, tasks)
+                        f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
+                    f.write(json.dumps(row) + "\n")
+                    f.flush()
+                    written += 1
+                    if on_row:
+                        on_row(row)
+                bar.update(1)
+    finally:
+        if f is not None:
+            f.close()
     return Executed(written, failed)
 
 

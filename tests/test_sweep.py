@@ -147,6 +147,7 @@ def test_cli_sweep_unreachable_dask_scheduler_is_a_one_line_error(tmp_path, caps
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("circsim: error: --dask ") and address in err and "scheduler" in err
+    assert list((tmp_path / "sw").iterdir()) == []  # a sweep that cannot start writes nothing
 
 
 def test_a_changed_base_scenario_is_not_resumed_as_finished():

@@ -21,14 +21,6 @@ from pathlib import Path
 # then one line, not a traceback
 
 
-def __getattr__(name):  # ``from circsim.cli import Scenario`` etc. still work
-    if name in ("Scenario", "ScenarioError", "bundled_scenarios", "load_scenario"):
-        from . import scenario
-
-        return getattr(scenario, name)
-    raise AttributeError(name)
-
-
 class UsageError(Exception):
     pass
 

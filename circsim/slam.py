@@ -99,7 +99,8 @@ class Slam:
         self._lut = np.array([0.0, config.log_odds.miss, config.log_odds.hit], np.float32)
         self._drift = np.zeros(3)  # dx, dy (metres, in M_i), dyaw (radians)
         self._last_true: Pose | None = None
-        self._last_integrated: Pose | None = None
+        self._prev_pose: Pose | None = None  # gmapping's rule: the path and turns since the last
+        self._linear_acc = self._angular_acc = 0.0  # integrated scan
         self.distance_m = 0.0
         self.updates = 0
         self._est = Pose(0.0, 0.0, 0.0)
@@ -135,17 +136,19 @@ class Slam:
         return self._est
 
     def _due(self, pose: Pose) -> bool:
-        """gmapping's rule: the first scan, then one after moving ``linear_update_m`` or turning
-        ``angular_update_rad`` since the last integrated scan (both 0: every scan)."""
+        """gmapping's rule (GridSlamProcessor::processScan): the first scan, then one once the path
+        travelled since the last integrated scan reaches ``linear_update_m`` or the turns summed since
+        then reach ``angular_update_rad`` (both 0: every scan)."""
         c = self.config
-        last = self._last_integrated
-        if last is not None and (c.linear_update_m > 0 or c.angular_update_rad > 0):
-            moved = math.hypot(pose.x - last.x, pose.y - last.y)
-            turned = abs(_wrap_pi(pose.yaw - last.yaw))
-            if not ((c.linear_update_m > 0 and moved >= c.linear_update_m)
-                    or (c.angular_update_rad > 0 and turned >= c.angular_update_rad)):
-                return False
-        self._last_integrated = pose
+        prev, self._prev_pose = self._prev_pose, pose
+        if prev is not None:
+            self._linear_acc += math.hypot(pose.x - prev.x, pose.y - prev.y)
+            self._angular_acc += abs(_wrap_pi(pose.yaw - prev.yaw))
+            if c.linear_update_m > 0 or c.angular_update_rad > 0:
+                if not ((c.linear_update_m > 0 and self._linear_acc >= c.linear_update_m)
+                        or (c.angular_update_rad > 0 and self._angular_acc >= c.angular_update_rad)):
+                    return False
+        self._linear_acc = self._angular_acc = 0.0
         return True
 
     def _advance_drift(self, pose: Pose) -> None:

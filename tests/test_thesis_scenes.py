@@ -27,7 +27,7 @@ def test_every_scan_is_integrated_by_default():
     assert slam.updates == 5
 
 
-def test_gmapping_rule_integrates_after_a_metre_or_half_a_radian():
+def test_gmapping_rule_integrates_after_a_metre_of_path_or_half_a_radian_of_turns():
     slam = Slam(GMAPPING, (0.0, 0.0, 0.0), np.random.default_rng(0))
     slam.update((0.0, 0.0, 0.0), a_scan())
     assert slam.updates == 1  # the first scan, always
@@ -35,17 +35,20 @@ def test_gmapping_rule_integrates_after_a_metre_or_half_a_radian():
         slam.update((float(x), 0.0, 0.0), a_scan())
     assert slam.updates == 1
     slam.update((1.0, 0.0, 0.0), a_scan())
-    assert slam.updates == 2  # 1.0 m since the last integrated scan
+    assert slam.updates == 2  # 1.0 m travelled since the last integrated scan
     slam.update((1.0, 0.0, 0.49), a_scan())
     assert slam.updates == 2
     slam.update((1.0, 0.0, 0.5), a_scan())
-    assert slam.updates == 3  # 0.5 rad since the last integrated scan
-    slam.update((1.0, 0.0, 0.5 - 0.3), a_scan())
-    slam.update((1.0, 0.0, 0.5 - 0.5), a_scan())
-    assert slam.updates == 4  # turning back counts too
+    assert slam.updates == 3  # 0.5 rad turned since the last integrated scan
+    slam.update((1.0, 0.0, 0.2), a_scan())
+    slam.update((1.0, 0.0, 0.5), a_scan())
+    assert slam.updates == 4  # turns are summed: back and forth makes 0.6 rad
+    for x in (1.3, 1.0, 1.3, 1.0):  # the path is summed too: 1.2 m there and back
+        slam.update((x, 0.0, 0.5), a_scan())
+    assert slam.updates == 5
     # the pose estimate follows every scan, integrated or not
-    slam.update((1.3, 0.0, 0.0), a_scan())
-    assert slam.updates == 4 and math.isclose(slam.estimated_pose().x, 1.3)
+    slam.update((1.3, 0.0, 0.5), a_scan())
+    assert slam.updates == 5 and math.isclose(slam.estimated_pose().x, 1.3)
 
 
 def test_relative_range_noise_follows_the_datasheet_shape():

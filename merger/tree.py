@@ -21,9 +21,11 @@ pair searches, every other pair is reused from the previous cycle. The team map 
    rule (every pair ≥ ν_min) rejected every 6-robot cycle of the hall after 15 s, all of them correct,
    and requiring it of the pairs that verified on their own still rejected 4 of 5 (a marginal pair's
    ν moves across ν_min between its own best alignment and the composed one).
+5. as with the orders (:func:`merger.team._beyond`), an assembly is refused when a tree edge's search
+   found a better alignment beyond the translation window.
 
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
-team), and names the others in ``reason``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
+team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
 x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.
 """
 
@@ -38,7 +40,7 @@ from .grid import OccupancyGrid
 from .search import Alignment, angle_diff_deg, search, wrap_deg
 from .superpose import fuse
 from .team import (AMBIGUOUS_DEG, AMBIGUOUS_M, ORIGIN, MapInput, MergeParams, OrderResult, Placement,
-                   TeamMergeResult, Warps, _pair_key, place_on_frame0, problem_for)
+                   TeamMergeResult, Warps, _beyond, _pair_key, place_on_frame0, problem_for)
 from .transform import overlap, rotation
 from .verify import Verification, pairwise, verify
 
@@ -228,9 +230,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     steps = tuple((maps[max(a, b)].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
-    chosen, merged, layers = (result, None, {}) if result.accepted else (None, None, {})
+    guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
+    chosen, merged, layers = (result, None, {}) if result.accepted and not guard else (None, None, {})
     if chosen is not None:
         lay = place_on_frame0(sub, sub_place, sw)
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
-    return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3)
+    return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
+                           guard)

@@ -189,3 +189,17 @@ def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
         assert 1 <= len(names) <= 3 and all(x.startswith("similarity tree edge ") for x in names)
         ev = [r["TextLog:text"][0] for r in rec[f"/events/{n}"] if not r["static"]]
         assert any(x.startswith("accepted merge") for x in ev)
+
+
+def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses_the_assembly(views):
+    _, names, maps, _ = views
+    params = MergeParams(roi_m=8.0, window_m=0.2)
+    inputs = _inputs(names, maps, versions=[1, 1, 1])
+    reuse = {}
+    good = merge_tree(inputs, params, reuse=reuse)
+    assert good.accepted and good.ambiguity == ""
+    edge = good.chosen.steps[0][1]
+    key = next(k for k, (al, _) in reuse.items() if al is edge)
+    reuse[key] = (dataclasses.replace(edge, _beyond=(10.0, (0.5, -0.4), 0.9)), reuse[key][1])
+    res = merge_tree(inputs, params, reuse=reuse)
+    assert not res.accepted and res.reason.startswith("beyond the window") and res.top.accepted

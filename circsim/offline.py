@@ -396,7 +396,7 @@ def summarize(results: list[SeedResult]) -> list[dict]:
             "first_correct_phi_min": min(phis) if phis else None,
             "first_correct_phi_max": max(phis) if phis else None,
             "first_correct_phi_per_seed": [r.first_correct_phi_deg for r in rs],
-            "thesis_phi": THESIS_PHI_DEG.get((scene, method)),
+            "thesis_phi": THESIS_PHI_DEG.get((scene.removesuffix("-thesis"), method)),
             "false_merges": sum(r.false_merges for r in rs),
             "proposed_180": sum(r.proposed_180 for r in rs),
             "rejected_180": sum(r.rejected_180 for r in rs),

@@ -296,7 +296,7 @@ class SectorBounds:
         """Row spectra of the (R, 360) 0/1 arrays MayOcc, SureFree, SureOcc (and MayFree for Birk–Carpin)
         of the moving map (cached, :data:`_MOVING_CACHE`).
 
-        The moving map is read in blocks of q × q cells (q ≈ half a sector): a block *may* hold a class
+        The moving map is read in blocks of q × q cells (q ≈ a sector / POOL_DIV): a block *may* hold a class
         when one of its cells does, *surely* holds it when all do; blocks tile the plane like cells, so
         the touching and path arguments (module documentation) hold for blocks unchanged."""
         lay = self.lay

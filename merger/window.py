@@ -558,25 +558,26 @@ def fast_window_search(problem):
 BEYOND_FACTOR = 2.0  # the guard looks for better alignments up to this × the window ...
 BEYOND_SLACK = 0.15  # ... climbing from approximate peaks outside it within this of the best inside
 BEYOND_CANDIDATES = 3
-BEYOND_APART_DEG = 10.0  # a rival differs from the in-window answer by more than this (merger.team's
-BEYOND_APART_M = 0.2  # ambiguity rule uses the same separation), or by more than this in translation
+BEYOND_APART_STEPS = 1.5  # a rival is more than one grid step (1°, one cell, or one diagonal cell) away
 
 
 def _apart(problem, a, b) -> bool:
-    """Whether two grid alignments (θ°, (a, b) cells) are more than BEYOND_APART_DEG or BEYOND_APART_M
-    apart."""
+    """Whether two grid alignments (θ°, (a, b) cells) are more than one grid step apart: further than
+    BEYOND_APART_STEPS degrees or cells. A better alignment one step beyond the window's edge is the
+    in-window answer's own peak, cut by the edge; one further away is another alignment (a truth the
+    window does not reach, or a rival), and the in-window answer is off by more than a step."""
     from .search import angle_diff_deg
 
-    if abs(angle_diff_deg(float(a[0]), float(b[0]))) > BEYOND_APART_DEG:
+    if abs(angle_diff_deg(float(a[0]), float(b[0]))) > BEYOND_APART_STEPS:
         return True
-    return math.dist(a[1], b[1]) * problem.ref.resolution > BEYOND_APART_M
+    return math.dist(a[1], b[1]) > BEYOND_APART_STEPS
 
 
 def beyond_window(problem, best_value: float, answer):
     """The best exact local maximum found outside the window, up to ``BEYOND_FACTOR`` × the window (at
     most a quarter of the ROI side), that scores above ``best_value`` and is apart from the grid answer
-    ``answer`` = (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None. Within BEYOND_APART_DEG and
-    BEYOND_APART_M of the answer it is the answer's own peak, cut by the window's edge: not a rival.
+    ``answer`` = (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None. Within one grid step of the
+    answer it is the answer's own peak, cut by the window's edge (:func:`_apart`).
 
     When the center error exceeds the window's reach the true alignment lies outside it, and the best
     alignment inside can be a rival (in a symmetric room, the half turn). The guard computes the

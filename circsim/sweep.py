@@ -161,12 +161,14 @@ def run_one(task: RunTask) -> dict:
 
 
 def clear_merger_caches() -> None:
-    """Empty the fast search's spectra cache, if the merger has one (it grows with every new map)."""
+    """Empty the merger's caches between runs (polar spectra, rotated ROIs, the fast search's sector
+    spectra). They are bounded; clearing them only keeps a worker's memory at its floor between runs."""
     try:
-        from merger.polar import clear_cache
+        from merger import fast, polar
     except ImportError:
         return
-    clear_cache()
+    polar.clear_cache()
+    fast.clear_cache()
 
 
 class HypothesisStats(Observer):

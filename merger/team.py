@@ -103,6 +103,14 @@ class MapInput:
     center: tuple[float, float]
     version: object = None
 
+    def __post_init__(self) -> None:
+        try:
+            ok = len(self.center) == 2 and all(math.isfinite(float(v)) for v in self.center)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"map {self.name!r}: center must be two finite numbers (x, y), got {self.center!r}")
+
 
 @dataclass(frozen=True, eq=False)
 class OrderResult:

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from merger.grid import OccupancyGrid
 from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
 from merger.superpose import fuse, superpose
@@ -152,3 +153,10 @@ def test_ambiguity_rule_rejects_close_rival_placements():
     assert MergeParams(window_m=0.0, ambiguity_margin=0.1).margin == 0.1
     with pytest.raises(ValueError, match="ambiguity_margin"):
         MergeParams(ambiguity_margin=float("nan"))
+
+
+@pytest.mark.parametrize("center", [(float("nan"), 0.0), (0.0, float("inf")), (1.0,), "a,b", None])
+def test_map_input_with_a_bad_center_names_the_map(center):
+    g = OccupancyGrid(np.zeros((4, 4), np.uint8), 0.05, (0.0, 0.0))
+    with pytest.raises(ValueError, match="map 'Nevers': center must be two finite numbers"):
+        MapInput("Nevers", g, center)

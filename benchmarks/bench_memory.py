@@ -116,6 +116,9 @@ def main(argv=None) -> int:
             cyc = [s["cycle_ms"] for s in rows if s["cycle_ms"] is not None]
             print(f"  {label:13s} ({t0:.0f}-{t1:.0f} s): CPU {sum(s['span_cpu_s'] for s in rows):5.1f} s, "
                   f"median merge cycle {statistics.median(cyc) if cyc else float('nan'):.1f} ms")
+    growth = (last["rss_mb"] - first["rss_mb"]) / first["rss_mb"]
+    print(f"RSS at {first['t']:.0f} s {first['rss_mb']:.1f} MB, at {last['t']:.0f} s {last['rss_mb']:.1f} MB: "
+          f"{growth:+.1%} (issue 10's target: within 10%)")
     mc = res.merge_cycle_ms()
     print(f"whole run: {mc['count']} cycles, median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms; "
           f"realtime factor {res.realtime_factor:.2f}; false merges {res.false_merges}; "

@@ -109,6 +109,7 @@ import scipy.fft as sfft
 
 from .cache import BoundedCache
 from .grid import FREE_S, OCCUPIED_S
+from .polar import crop_cells
 from .search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
@@ -307,14 +308,8 @@ class SectorBounds:
         # only cells that meet the moving ROI's square matter (outside it a lookup is unknown): the crop is
         # the square and two blocks around it; blocks beyond are outside the square, as its outer ring
         reach = half + 2 * q * mres
-        c0 = int(math.floor((cmx - reach - mov.origin[0]) / mres))
-        r0 = int(math.floor((cmy - reach - mov.origin[1]) / mres))
-        size = (int(math.ceil(2 * reach / mres)) + 2 + q - 1) // q * q
-        crop = np.zeros((size, size), np.uint8)
-        gc0, gc1 = max(c0, 0), min(c0 + size, mov.width)
-        gr0, gr1 = max(r0, 0), min(r0 + size, mov.height)
-        if gc0 < gc1 and gr0 < gr1:
-            crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = mov.states[gr0:gr1, gc0:gc1]
+        crop, c0, r0 = crop_cells(mov, (cmx, cmy), reach, q)
+        size = crop.shape[0]
         # a map is the moving map of several searches of a merge cycle: its sector spectra are kept, keyed
         # by the geometry and a cheap sample of the crop, and served only if the whole crop is equal
         key = (lay.n, lay.res, lay.wb, q, self.measure, mres, cmx - mov.origin[0] - c0 * mres,

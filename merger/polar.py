@@ -110,9 +110,9 @@ def _crop(grid: OccupancyGrid, center, lay: PolarLayout):
     return square_crop(grid, center, lay.n * lay.res / 2.0 * math.sqrt(2) + 2 * res * p, p)
 
 
-def square_crop(grid: OccupancyGrid, center, reach: float, multiple: int = 1):
+def crop_cells(grid: OccupancyGrid, center, reach: float, multiple: int = 1):
     """The grid's cells within ``reach`` metres of ``center`` on each axis (unknown outside the grid), as a
-    square whose side is a multiple of ``multiple``; and the crop's origin (metres)."""
+    square whose side is a multiple of ``multiple``; and the grid column and row of its first cell."""
     res = grid.resolution
     c0 = int(math.floor((center[0] - reach - grid.origin[0]) / res))
     r0 = int(math.floor((center[1] - reach - grid.origin[1]) / res))
@@ -122,7 +122,13 @@ def square_crop(grid: OccupancyGrid, center, reach: float, multiple: int = 1):
     gr0, gr1 = max(r0, 0), min(r0 + size, grid.height)
     if gc0 < gc1 and gr0 < gr1:
         crop[gr0 - r0:gr1 - r0, gc0 - c0:gc1 - c0] = grid.states[gr0:gr1, gc0:gc1]
-    return crop, (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
+    return crop, c0, r0
+
+
+def square_crop(grid: OccupancyGrid, center, reach: float, multiple: int = 1):
+    """:func:`crop_cells`, with the crop's origin (metres) instead of its first cell."""
+    crop, c0, r0 = crop_cells(grid, center, reach, multiple)
+    return crop, (grid.origin[0] + c0 * grid.resolution, grid.origin[1] + r0 * grid.resolution)
 
 
 def _max_pool(crop: np.ndarray, p: int) -> np.ndarray:

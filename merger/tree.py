@@ -39,8 +39,21 @@ import numpy as np
 from .grid import OccupancyGrid
 from .search import Alignment, angle_diff_deg, search, wrap_deg
 from .superpose import fuse
-from .team import (AMBIGUOUS_DEG, AMBIGUOUS_M, ORIGIN, MapInput, MergeParams, OrderResult, Placement,
-                   TeamMergeResult, Warps, _beyond, _pair_key, place_on_frame0, problem_for)
+from .team import (
+    AMBIGUOUS_DEG,
+    AMBIGUOUS_M,
+    ORIGIN,
+    MapInput,
+    MergeParams,
+    OrderResult,
+    Placement,
+    TeamMergeResult,
+    Warps,
+    _beyond,
+    _pair_key,
+    place_on_frame0,
+    problem_for,
+)
 from .transform import overlap, rotation
 from .verify import Verification, pairwise, verify
 
@@ -173,7 +186,7 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
             (wrap_deg(theta[k]), (float(tt[2 * idx[k]]), float(tt[2 * idx[k] + 1]))) for k in place}
 
 
-def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,
+def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # noqa: B008 (frozen)
                reuse: dict | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
 

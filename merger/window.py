@@ -597,8 +597,8 @@ def beyond_window(problem, best_value: float, answer):
         return None
     floor = float(table[~outside].max()) - BEYOND_SLACK
     ring = np.where(outside[:, None], table, -np.inf)
-    starts = [p for p in _peaks([t for t in ts], ring, pool, BEYOND_CANDIDATES)
-              if max(abs(p[1]), abs(p[2])) > k and ring[ts.index((p[1], p[2])), p[0]] >= floor]
+    # inside entries are −inf in the ring, below the (finite) floor: every start lies outside
+    starts = [p for p in _peaks(ts, ring, pool, BEYOND_CANDIDATES) if ring[ts.index((p[1], p[2])), p[0]] >= floor]
     if not starts:
         return None
     climber = _Climber(WindowEvaluator(big), kb)

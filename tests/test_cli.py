@@ -16,19 +16,7 @@ import yaml
 from circsim.cli import main
 from circsim.record import rerun_executable
 from merger.search import angle_diff_deg
-
-
-def _sigint_default():
-    """In the child: SIGINT delivered even when the test runner was started with SIGINT ignored."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-def _wait_for(pred, timeout_s, what):
-    t0 = time.monotonic()
-    while not pred():
-        if time.monotonic() - t0 > timeout_s:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
+from tests.subproc import sigint_default, wait_for
 
 
 def test_sigterm_during_a_run_completes_the_recording_and_the_json(tmp_path):
@@ -37,7 +25,7 @@ def test_sigterm_during_a_run_completes_the_recording_and_the_json(tmp_path):
            "--json", str(js), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: rrd.exists() and rrd.stat().st_size > 200_000 or proc.poll() is not None, 120,
+        wait_for(lambda: rrd.exists() and rrd.stat().st_size > 200_000 or proc.poll() is not None, 120,
                   "the recording to grow")
         assert proc.poll() is None, proc.communicate()
         assert not js.exists()  # the JSON appears once, whole, at the end
@@ -62,7 +50,7 @@ def test_a_signal_during_start_up_is_one_line(tmp_path, sig, code, word, delay_s
     js = tmp_path / "t.json"
     cmd = [sys.executable, "-m", "circsim.cli", "run", "scene1", "--json", str(js), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_sigint_default)
+                            preexec_fn=sigint_default)
     time.sleep(delay_s)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=120)

@@ -52,7 +52,7 @@ def test_first_merge_needs_every_teammate_and_first_pair_comes_no_later(min_maps
         first = next(c for c in obs.cycles if c.robot == name and c.first_correct)
         assert first.complete and first.t == r.first_merge_s and first.teammates_placed == 2
         counts = [k for _, k in r.teammates_placed]
-        assert counts[-1] == 2 and all(a != b for a, b in zip(counts, counts[1:]))  # one entry per change
+        assert counts[-1] == 2 and all(a != b for a, b in zip(counts, counts[1:], strict=False))  # one entry per change
     if min_maps == "null":
         assert all(c.complete for c in obs.cycles)
 

@@ -7,7 +7,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 from types import SimpleNamespace
@@ -27,6 +26,7 @@ from circsim.sim import truth_translation
 from circsim.world import World
 from merger.overlay import overlay_rgb
 from merger.team import MapInput, MergeParams, merge_team
+from tests.subproc import sigint_default, wait_for
 
 from .conftest import three_views
 
@@ -377,29 +377,15 @@ def test_run_recording_matches_the_metrics(short_run):
     assert json.loads(metrics_doc.split("```json\n")[1].split("\n```")[0])["robots"] == d["robots"]
 
 
-def _wait_for(pred, timeout_s, what):
-    t0 = time.monotonic()
-    while not pred():
-        if time.monotonic() - t0 > timeout_s:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.1)
-
-
-def _sigint_default():
-    """In the child: Ctrl-C as a terminal delivers it, even when the test runner was started with SIGINT
-    ignored (nohup, a background job), which Python would otherwise pass on to the child."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def test_ctrl_c_leaves_a_complete_readable_recording(tmp_path):
     rrd, js = tmp_path / "cut.rrd", tmp_path / "cut.json"
     cmd = [sys.executable, "-m", "circsim.cli", "run", "scene1", "--set", "duration_s=60", "--set",
            "merger.method=fast", "--rrd", str(rrd), "--json", str(js), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "RERUN_STRICT": "1"}, preexec_fn=_sigint_default)
+                            env={**os.environ, "RERUN_STRICT": "1"}, preexec_fn=sigint_default)
     try:
         # wait until merges are being logged (the file grows past the static part), then press Ctrl-C
-        _wait_for(lambda: rrd.exists() and rrd.stat().st_size > 300_000 or proc.poll() is not None, 120,
+        wait_for(lambda: rrd.exists() and rrd.stat().st_size > 300_000 or proc.poll() is not None, 120,
                   "the recording to grow")
         assert proc.poll() is None, proc.communicate()
         proc.send_signal(signal.SIGINT)
@@ -428,7 +414,7 @@ def test_spawn_and_file_together(tmp_path, monkeypatch):
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     spawned = []
     try:
-        _wait_for(lambda: _listening(port), 30, "the gRPC server")
+        wait_for(lambda: _listening(port), 30, "the gRPC server")
         monkeypatch.setattr(record, "VIEWER_PORT", port)
         monkeypatch.setattr(record, "has_display", lambda: True)
         monkeypatch.setattr(record.rr, "spawn", lambda **kw: spawned.append(kw))  # the server stands in
@@ -493,9 +479,9 @@ def test_view_web_serves_on_localhost_until_ctrl_c(fabricated):
     code = (f"import sys; from circsim.record import view; "
             f"sys.exit(view({str(fabricated.path)!r}, web=True, web_port={web}, grpc_port={grpc}))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            text=True, preexec_fn=_sigint_default)
+                            text=True, preexec_fn=sigint_default)
     try:
-        _wait_for(lambda: _http_ok(f"http://127.0.0.1:{web}/") or proc.poll() is not None, 60, "the web viewer")
+        wait_for(lambda: _http_ok(f"http://127.0.0.1:{web}/") or proc.poll() is not None, 60, "the web viewer")
         assert proc.poll() is None
         assert _listening(grpc)
         proc.send_signal(signal.SIGINT)
@@ -505,7 +491,7 @@ def test_view_web_serves_on_localhost_until_ctrl_c(fabricated):
             proc.kill()
     assert proc.returncode == 130
     assert f"http://127.0.0.1:{web}" in out
-    _wait_for(lambda: not _listening(web), 30, "the web viewer to stop")
+    wait_for(lambda: not _listening(web), 30, "the web viewer to stop")
 
 
 def _free_port() -> int:

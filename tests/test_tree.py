@@ -8,10 +8,10 @@ import pytest
 
 from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
+from merger.similarity import Counts
 from merger.team import MapInput, MergeParams, _pair_key, compose, merge_team
 from merger.tree import chain, merge_tree, relative, spanning_tree
 from merger.verify import Verification
-from merger.similarity import Counts
 from tests.conftest import three_views
 
 

@@ -166,6 +166,7 @@ class RerunRecorder(Observer):
         self.series: dict[str, tuple[str, ...]] = {}
         self.colours_of: dict[tuple[str, str], tuple] = {}  # (plot, series) -> colour, fixed once declared
         self.centers_logged: dict[str, tuple[float, float]] = {}
+        self.ambiguous_logged: dict[tuple[str, str, str], tuple] = {}  # (robot, ref, moving) -> last logged
         self.start_poses = {n: tuple(float(v) for v in sim.start_poses[n][:3]) for n in self.names}
         self.centers_given = {n: tuple(map(float, sim.centers_given[n])) for n in self.names}
         self.poses: dict[str, list[tuple]] = {n: [] for n in self.names}
@@ -221,6 +222,7 @@ class RerunRecorder(Observer):
         self._at(c.t, self.step)
         n, res = c.robot, c.result
         self._plot_cycle(c)
+        self._log_ambiguous(c)
         top = res.top
         thetas = ", ".join(f"{k} {v:.1f}°" for k, v in top.theta_deg.items() if k != n)
         nus = ", ".join(f"{k} {v:.3f}" for k, v in top.nu.items())
@@ -250,6 +252,17 @@ class RerunRecorder(Observer):
             note = " (this hypothesis was correct)" if c.correct else ""
             self._text(n, "INFO", f"rejected merge: best order {order}, θ {thetas}; ν {nus}: "
                                   f"{res.reason}{note}")
+
+    def _log_ambiguous(self, c: MergeCycle) -> None:
+        """One event per ambiguous pair of the cycle (both angles, scores and ν, the verdict), logged when
+        it first appears or changes: a pair reused between cycles is not repeated."""
+        for a in c.result.ambiguous:
+            key = (c.robot, a.ref, a.moving)
+            state = (round(a.best.theta_deg, 1), round(a.runner_up.theta_deg, 1), a.verdict)
+            if self.ambiguous_logged.get(key) == state:
+                continue
+            self.ambiguous_logged[key] = state
+            self._text(c.robot, "INFO" if a.used else "WARN", a.describe())
 
     def on_event(self, t: float, level: str, text: str) -> None:
         self._at(t, self.step)
@@ -428,7 +441,9 @@ class RerunRecorder(Observer):
                 self._series(f"{base}/translation_error_m", t_errs)
         self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
         self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, _GREY),
-                                                  ("maps merged", len(res.top.theta_deg), None)])
+                                                  ("maps merged", len(res.top.theta_deg), None),
+                                                  ("ambiguous pairs not used",
+                                                   sum(not a.used for a in res.ambiguous), None)])
 
     def _log_merged(self, c: MergeCycle, step: int, now: float) -> None:
         n, res = c.robot, c.result

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
@@ -168,6 +169,7 @@ class TeamMergeResult:
     layers: dict[str, OccupancyGrid] = field(repr=False)
     wall_ms: float = 0.0
     ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
+    ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.ambiguity`)
 
     @property
     def reason(self) -> str:
@@ -191,7 +193,7 @@ class TeamMergeResult:
 
     def to_dict(self) -> dict:
         return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
-                "ambiguity": self.ambiguity,
+                "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
                 "chosen": self.chosen.to_dict() if self.chosen else None,
                 "orders": [o.to_dict() for o in self.orders]}
 
@@ -208,7 +210,7 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     if ref.version is None or mov.version is None:
         return None
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
-            params.roi_m, params.measure, params.method, params.window_m, params.refine)
+            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin)
 
 
 Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
@@ -302,7 +304,9 @@ def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergePara
 
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
                 reuse: dict | None = None, warps: Warps | None = None):
-    """Search the placements of one order; returns (θ, t) onto map 0 per map index and the search steps.
+    """Search the placements of one order; returns (θ, t) onto map 0 per map index, the search steps and
+    the steps' ambiguities (:func:`merger.ambiguity.resolve`: a step whose runner-up scores within the
+    margin is verified on the whole maps under both hypotheses, and takes the one that evidence separates).
 
     ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
@@ -311,15 +315,21 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
     first = maps[order[0]]
     sup = first.grid
     onto_first: dict[int, Placement] = {order[0]: (0.0, ORIGIN)}
-    steps = []
+    steps, ambiguous = [], []
     for k in order[1:]:
         m = maps[k]
         key = _pair_key(first, m, params) if reuse is not None and k == order[1] else None
-        al = reuse.get(key) if key is not None else None
-        if al is None:
-            al = search(problem_for(sup, first.center, m, params), params.method)
+        hit = reuse.get(key) if key is not None else None
+        if hit is None:
+            prob = problem_for(sup, first.center, m, params)
+            ref = "+".join(maps[x].name for x in order[:order.index(k)])
+            hit = resolve(prob, search(prob, params.method), params.margin,
+                          _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
             if key is not None:
-                reuse[key] = al
+                reuse[key] = hit
+        al, amb = hit
+        if amb is not None:
+            ambiguous.append(amb)
         onto_first[k] = (al.theta_deg, al.translation_m)
         steps.append((m.name, al))
         if k != order[-1]:
@@ -327,7 +337,16 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
             sup = OccupancyGrid(superpose(paste(sup, cv).states,
                                           paste(warps.get(order[0], k, *onto_first[k]), cv).states),
                                 cv.resolution, cv.origin)
-    return compose(onto_first, order[0], 0), tuple(steps)
+    return compose(onto_first, order[0], 0), tuple(steps), tuple(ambiguous)
+
+
+def _step_check(onto: OccupancyGrid, warps: Warps, frame: int, k: int, params: MergeParams, label: str):
+    """Whole-map verification of an alignment of map ``k`` onto ``onto`` (a map or a superposition on map
+    ``frame``'s lattice, about its center): the ambiguity rule's evidence for one step of an order."""
+    def check(al: Alignment) -> Verification:
+        return verify(*overlap(onto, warps.get(frame, k, al.theta_deg, al.translation_m)),
+                      nu_min=params.nu_min, min_support=params.min_support, label=label)
+    return check
 
 
 def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
@@ -341,7 +360,7 @@ def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
 
 
 def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
-                  warps: Warps) -> OrderResult:
+                  warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
     if params.verification == "whole_map":
         checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
@@ -351,7 +370,7 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
             ok = al.score >= params.score_min
             checks[name] = Verification(al.score, al.counts, ok, "" if ok else
                                         f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
-    failed = [c.reason for c in checks.values() if not c.passed]
+    failed = [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
     return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: place0[k][0] for k in order},
                        steps, checks, not failed, "; ".join(failed),
                        {maps[k].name: place0[k][1] for k in order})
@@ -386,8 +405,8 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    results = [_order_result(maps, o, params, place0, steps, warps)
-               for o, (place0, steps) in zip(orders, aligned, strict=True)]
+    results = [_order_result(maps, o, params, place0, steps, warps, amb)
+               for o, (place0, steps, amb) in zip(orders, aligned, strict=True)]
     accepted = [k for k, r in enumerate(results) if r.accepted]
     chosen, merged, layers, ambiguity = None, None, {}, ""
     if accepted:
@@ -399,7 +418,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
     return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
-                           (time.perf_counter() - t0) * 1e3, ambiguity)
+                           (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb))
 
 
 def _ambiguity(results: list[OrderResult], accepted: list[int], best: int, margin: float) -> str:

@@ -33,9 +33,11 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
+from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .search import Alignment, angle_diff_deg, search, wrap_deg
 from .superpose import fuse
@@ -57,21 +59,49 @@ from .team import (
 from .transform import overlap, rotation
 from .verify import Verification, pairwise, verify
 
-PairResult = tuple[Alignment, Verification]  # map j searched onto map i, verified in i's frame
+
+@dataclass(frozen=True, eq=False)
+class PairResult:
+    """Map j searched onto map i and verified in i's frame; ``ambiguity``: the pair's runner-up scored
+    within the margin (:mod:`merger.ambiguity`) — the alignment is the hypothesis whole-map evidence chose,
+    or, when it chose none, the best one with a failed ``verification`` naming both (the edge is dropped)."""
+
+    ref: str
+    moving: str
+    alignment: Alignment
+    verification: Verification
+    ambiguity: PairAmbiguity | None = None
+
+    @property
+    def ambiguous(self) -> bool:
+        return self.ambiguity is not None
+
+    def to_dict(self) -> dict:
+        return {"ref": self.ref, "moving": self.moving, **self.alignment.to_dict(), "nu": self.verification.nu,
+                "passed": self.verification.passed, "reason": self.verification.reason,
+                "ambiguous": self.ambiguous,
+                "ambiguity": None if self.ambiguity is None else self.ambiguity.to_dict()}
 
 
 def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps) -> PairResult:
-    """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame."""
-    al = search(problem_for(maps[i].grid, maps[i].center, maps[j], params), params.method)
-    if params.verification == "whole_map":
-        a, b = overlap(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m))
-        ver = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
-                     label=f"{maps[i].name}|{maps[j].name}")
-    else:
+    """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame; an
+    ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.ambiguity.resolve`)."""
+    label = f"{maps[i].name}|{maps[j].name}"
+
+    def check(al: Alignment) -> Verification:
+        if params.verification == "whole_map":
+            a, b = overlap(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m))
+            return verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
         ok = al.score >= params.score_min
-        ver = Verification(al.score, al.counts, ok, "" if ok else
-                           f"score of {maps[j].name} = {al.score:.3f} < score_min {params.score_min:g}")
-    return al, ver
+        return Verification(al.score, al.counts, ok, "" if ok else
+                            f"score of {maps[j].name} = {al.score:.3f} < score_min {params.score_min:g}")
+
+    prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
+    al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
+    ver = check(al)
+    if amb is not None and not amb.used:
+        ver = Verification(ver.nu, ver.counts, False, amb.reason)
+    return PairResult(maps[i].name, maps[j].name, al, ver, amb)
 
 
 def spanning_tree(n: int, edges: dict[tuple[int, int], float]) -> list[tuple[int, int]]:
@@ -123,7 +153,7 @@ def compose_tree(n: int, tree: list[tuple[int, int]], pairs: dict[tuple[int, int
         for b in sorted(nbrs[a]):
             if b in place:
                 continue
-            al = pairs[(min(a, b), max(a, b))][0]
+            al = pairs[(min(a, b), max(a, b))].alignment
             place[b] = chain(place[a], relative(al, reverse=a > b))
             links.append((a, b))
             queue.append(b)
@@ -135,7 +165,8 @@ def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], Pa
     """Verified non-tree pairs between placed maps whose own alignment disagrees with the composed one."""
     out = []
     in_tree = set(tree)
-    for (i, j), (al, ver) in pairs.items():
+    for (i, j), p in pairs.items():
+        al, ver = p.alignment, p.verification
         if not ver.passed or (i, j) in in_tree or i not in place or j not in place:
             continue
         th_i, t_i = place[i]
@@ -158,8 +189,8 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
     Σ ν_ij (θ_j − θ_i − θ_ij)² (linearised about the tree's angles, map 0 fixed), then the translations
     Σ ν_ij |t_j − t_i − R(θ_i) t_ij|² given the angles. Without loops this is the tree's placement."""
     idx = {k: n for n, k in enumerate(k for k in place if k != 0)}
-    edges = [(i, j, al, ver.nu) for (i, j), (al, ver) in pairs.items()
-             if ver.passed and i in place and j in place]
+    edges = [(i, j, p.alignment, p.verification.nu) for (i, j), p in pairs.items()
+             if p.verification.passed and i in place and j in place]
     if len(edges) <= len(idx) or not idx:  # a tree: nothing to adjust
         return place
     a = np.zeros((len(edges), len(idx)))
@@ -214,12 +245,12 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if reuse is not None:
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    edges = {ij: ver.nu for ij, (_, ver) in pairs.items() if ver.passed}
+    edges = {ij: p.verification.nu for ij, p in pairs.items() if p.verification.passed}
     tree = spanning_tree(len(maps), edges)
     place, links = compose_tree(len(maps), tree, pairs)
     if len(place) == 1:  # no verified pair reaches map 0: report its best pair, rejected
-        best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)][1].nu, -k))
-        place[best] = relative(pairs[(0, best)][0], reverse=False)
+        best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)].verification.nu, -k))
+        place[best] = relative(pairs[(0, best)].alignment, reverse=False)
         links = [(0, best)]
     inconsistent = inconsistencies(place, pairs, tree, maps)
     if not inconsistent:
@@ -233,14 +264,14 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     for a, b in pairwise(sub):
         ij = (min(order[a], order[b]), max(order[a], order[b]))
         v = sw.check(a, sub_place[a], b, sub_place[b], params) if params.verification == "whole_map" \
-            else pairs[ij][1]
+            else pairs[ij].verification
         checks[f"{sub[a].name}|{sub[b].name}"] = v
-        if ij in linked and pairs[ij][1].passed and not v.passed:  # a tree edge must verify in the assembly
+        if ij in linked and pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly
             failed.append(v.reason)
-    if any(not pairs[ij][1].passed for ij in linked):  # the fallback pair of an unlinked map 0
-        failed += [pairs[ij][1].reason for ij in linked if not pairs[ij][1].passed]
+    if any(not pairs[ij].verification.passed for ij in linked):  # the fallback pair of an unlinked map 0
+        failed += [pairs[ij].verification.reason for ij in linked if not pairs[ij].verification.passed]
     failed += inconsistent
-    steps = tuple((maps[max(a, b)].name, pairs[(min(a, b), max(a, b))][0]) for a, b in links)
+    steps = tuple((maps[max(a, b)].name, pairs[(min(a, b), max(a, b))].alignment) for a, b in links)
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
@@ -250,4 +281,4 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
     return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
-                           guard)
+                           guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None))

@@ -10,7 +10,7 @@ from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
 from merger.similarity import Counts
 from merger.team import MapInput, MergeParams, _pair_key, compose, merge_team
-from merger.tree import chain, merge_tree, relative, spanning_tree
+from merger.tree import PairResult, chain, merge_tree, relative, spanning_tree
 from merger.verify import Verification
 from tests.conftest import three_views
 
@@ -95,9 +95,9 @@ def test_a_false_pair_that_closes_an_inconsistent_loop_is_rejected(views):
     good = merge_tree(inputs, params, reuse=reuse)
     assert good.accepted and len(reuse) == 3
     key = _pair_key(inputs[1], inputs[2], params)
-    al, _ = reuse[key]
+    al = reuse[key].alignment
     wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 180.0) % 360.0)
-    reuse[key] = (wrong, Verification(0.99, Counts(5000, 10), True))
+    reuse[key] = PairResult(names[1], names[2], wrong, Verification(0.99, Counts(5000, 10), True))
     res = merge_tree(inputs, params, reuse=reuse)
     assert not res.accepted and "inconsistent" in res.reason
 
@@ -162,9 +162,12 @@ def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
     def ver(nu):
         return Verification(nu, Counts(1000, 100), True)
 
-    pairs = {(0, 1): (_al(90.5, (0.0, 0.0)), ver(0.9)), (1, 2): (_al(90.5, (0.0, 0.0)), ver(0.9)),
-             (2, 3): (_al(90.5, (0.0, 0.0)), ver(0.9)), (0, 3): (_al(270.0, (0.0, 0.0)), ver(0.6))}
-    tree = spanning_tree(4, {k: v[1].nu for k, v in pairs.items()})
+    def pair(i, j, theta, nu):
+        return PairResult(str(i), str(j), _al(theta, (0.0, 0.0)), ver(nu))
+
+    pairs = {(0, 1): pair(0, 1, 90.5, 0.9), (1, 2): pair(1, 2, 90.5, 0.9), (2, 3): pair(2, 3, 90.5, 0.9),
+             (0, 3): pair(0, 3, 270.0, 0.6)}
+    tree = spanning_tree(4, {k: v.verification.nu for k, v in pairs.items()})
     assert (0, 3) not in tree
     place, _ = compose_tree(4, tree, pairs)
     assert abs(angle_diff_deg(place[3][0], 270.0) - 1.5) < 1e-9
@@ -199,7 +202,7 @@ def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses
     good = merge_tree(inputs, params, reuse=reuse)
     assert good.accepted and good.ambiguity == ""
     edge = good.chosen.steps[0][1]
-    key = next(k for k, (al, _) in reuse.items() if al is edge)
-    reuse[key] = (dataclasses.replace(edge, _beyond=(10.0, (0.5, -0.4), 0.9)), reuse[key][1])
+    key = next(k for k, p in reuse.items() if p.alignment is edge)
+    reuse[key] = dataclasses.replace(reuse[key], alignment=dataclasses.replace(edge, _beyond=(10.0, (0.5, -0.4), 0.9)))
     res = merge_tree(inputs, params, reuse=reuse)
     assert not res.accepted and res.reason.startswith("beyond the window") and res.top.accepted

@@ -1,0 +1,174 @@
+"""Ambiguous pairs: a pair's best alignment and its runner-up score alike (issue 10, item 5).
+
+A search answers the best (θ, t) on the region of interest; its runner-up (:attr:`Alignment.runner_up`,
+the best coarse angle more than 10° away) is a rival. In a point-symmetric neighbourhood of the center
+the two peaks are the truth and its half turn, and the ROI cannot tell them apart. A pair is
+*ambiguous* when the runner-up's exact score (:func:`rival`: the runner-up's best translation in the
+window and its fine angle) is within the margin of the best's score. Whole-map evidence then decides
+(:func:`resolve`): ν of the pair under both hypotheses; the one whose ν exceeds the other's by at
+least the margin is used (it may be the runner-up: the ROI's best is then the false one), and when
+neither does, the pair is not used — the orders strategy refuses an order that searched it, the tree
+drops the edge. The margin is :attr:`merger.team.MergeParams.margin` (0.05 with a window, 0 — the rule
+off, the thesis's behaviour — without one), in the same ω̃ units for the ROI scores and for ν.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .search import (
+    RUNNER_UP_MIN_SEPARATION_DEG,
+    Alignment,
+    RotationProblem,
+    angle_diff_deg,
+    fine_angles,
+    wrap_deg,
+)
+from .verify import Verification
+
+PREFILTER_SLACK = 0.05  # the profile's runner-up score can be approximate (the fast search's polar
+# stage): a pair is examined exactly when that score is within margin + this of the best
+RIVAL_SPAN_DEG = 2  # the exact runner-up is the best coarse angle within ± this of the profile's
+
+VERDICTS = ("best", "runner_up", "unresolved")
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One placement of the moving map onto the reference: x_ref = c_ref + t + R(θ)(x − c), its ROI
+    score and its whole-map ν (with the verification's support)."""
+
+    theta_deg: float
+    translation_m: tuple[float, float]
+    score: float
+    nu: float
+    support: int
+    passed: bool
+
+    def to_dict(self) -> dict:
+        return {"theta_deg": self.theta_deg, "translation_m": list(self.translation_m), "score": self.score,
+                "nu": self.nu, "support": self.support, "passed": self.passed}
+
+
+@dataclass(frozen=True)
+class PairAmbiguity:
+    """An ambiguous pair and what whole-map evidence made of it.
+
+    ref, moving : the pair (``ref`` may be a superposition, named "A+B").
+    best, runner_up : the two hypotheses (angles more than 10° apart, ROI scores within ``margin``).
+    verdict : "best" or "runner_up" — ν of that hypothesis exceeds the other's by at least ``margin``,
+        and it is the pair's alignment; "unresolved" — the pair is not used.
+    """
+
+    ref: str
+    moving: str
+    best: Hypothesis
+    runner_up: Hypothesis
+    margin: float
+    verdict: str
+
+    ambiguous = True
+
+    @property
+    def used(self) -> bool:
+        return self.verdict != "unresolved"
+
+    @property
+    def chosen(self) -> Hypothesis | None:
+        return {"best": self.best, "runner_up": self.runner_up}.get(self.verdict)
+
+    def describe(self) -> str:
+        b, r = self.best, self.runner_up
+        head = (f"ambiguous pair {self.ref}←{self.moving}: θ {b.theta_deg:.1f}° (t ({b.translation_m[0]:+.2f}, "
+                f"{b.translation_m[1]:+.2f}) m, score {b.score:.3f}, ν {b.nu:.3f}) vs θ {r.theta_deg:.1f}° "
+                f"(t ({r.translation_m[0]:+.2f}, {r.translation_m[1]:+.2f}) m, score {r.score:.3f}, "
+                f"ν {r.nu:.3f}), margin {self.margin:g}")
+        if self.verdict == "unresolved":
+            return head + ": whole-map evidence does not separate them, the pair is not used"
+        return head + f": whole-map evidence chooses θ {self.chosen.theta_deg:.1f}°"
+
+    @property
+    def reason(self) -> str:
+        """Why the pair is not used ("" when it is)."""
+        return "" if self.used else self.describe()
+
+    def to_dict(self) -> dict:
+        return {"ref": self.ref, "moving": self.moving, "ambiguous": True, "verdict": self.verdict,
+                "used": self.used, "margin": self.margin, "best": self.best.to_dict(),
+                "runner_up": self.runner_up.to_dict(),
+                "theta_deg": [self.best.theta_deg, self.runner_up.theta_deg]}
+
+
+def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment | None:
+    """The runner-up of ``al`` as an exact alignment when it scores within ``margin`` of ``al`` on the ROI
+    (None otherwise, or when ``margin`` ≤ 0).
+
+    The profile's runner-up angle (coarse, possibly approximate) is re-evaluated exactly over every
+    translation of the window at the coarse angles within ±2° of it (more than 10° from ``al``), then
+    refined as the search refines its answer (0.1° over ±1°, then below the grid when the problem asks
+    for it), so that both hypotheses are compared on equal terms."""
+    from .window import WindowEvaluator, refine_alignment
+
+    if margin <= 0:
+        return None
+    ru_deg, ru_score = al.runner_up
+    if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
+        return None
+    ev = WindowEvaluator(problem)
+    k = problem.window_cells
+    ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
+    top = None
+    for d in range(-RIVAL_SPAN_DEG, RIVAL_SPAN_DEG + 1):
+        th = float((round(ru_deg) + d) % 360)
+        if abs(angle_diff_deg(th, al.theta_deg)) <= RUNNER_UP_MIN_SEPARATION_DEG:
+            continue
+        vals = ev.evaluate(th, ts)
+        i = int(np.argmax(vals))
+        if top is None or vals[i] > top[0]:
+            top = (float(vals[i]), th, ts[i])
+    if top is None:
+        return None
+    _, th_c, tc = top
+    angles = fine_angles(th_c)
+    vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
+    kf = int(np.argmax(vals))
+    theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
+    if al.score - score >= margin:
+        return None
+    out = Alignment(theta, score, ev.counts(float(angles[kf]), tc), al.measure, al.method, al.roi_m, al.profile,
+                    (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
+                    cells=tc, fine=(np.asarray(angles, np.float64), vals), _beyond=lambda: al.beyond)
+    return refine_alignment(problem, out, ev) if problem.refine else out
+
+
+def verdict(nu_best: float, nu_runner_up: float, margin: float) -> str:
+    """Which hypothesis whole-map evidence separates from the other by at least ``margin``."""
+    if nu_best - nu_runner_up >= margin:
+        return "best"
+    if nu_runner_up - nu_best >= margin:
+        return "runner_up"
+    return "unresolved"
+
+
+def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Callable[[Alignment], Verification],
+            ref: str, moving: str) -> tuple[Alignment, PairAmbiguity | None]:
+    """The alignment to use for a pair and its ambiguity record (None: the pair is not ambiguous).
+
+    ``nu_of`` verifies an alignment of the pair on the whole maps (the strategy's own rule). A pair whose
+    two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
+    and unresolved the best alignment is returned with the record, whose ``used``
+    is False: the caller does not use the pair."""
+    riv = rival(problem, al, margin)
+    if riv is None:
+        return al, None
+    vb, vr = nu_of(al), nu_of(riv)
+    if not (vb.passed or vr.passed):  # neither is a merge: the pair fails on its own evidence
+        return al, None
+    hyp = [Hypothesis(a.theta_deg, tuple(a.translation_m), a.score, v.nu, v.support, v.passed)
+           for a, v in ((al, vb), (riv, vr))]
+    rec = PairAmbiguity(ref, moving, hyp[0], hyp[1], float(margin), verdict(vb.nu, vr.nu, margin))
+    return (riv if rec.verdict == "runner_up" else al), rec

@@ -1,0 +1,154 @@
+"""Ambiguous pairs (issue 10, item 5): a pair's best alignment and its runner-up (more than 10° apart) score
+within the margin; the pair is used only when whole-map ν separates the two. Checked against ground truth."""
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from merger.ambiguity import verdict
+from merger.search import angle_diff_deg
+from merger.synthetic import arc_viewpoints, partial_view, room_scene, window_case
+from merger.team import MapInput, MergeParams, Warps, merge_team
+from merger.tree import merge_tree, pair_result
+
+P = MergeParams(roi_m=8.0, window_m=0.5)  # margin 0.05 (the default with a window)
+
+
+def case_maps(c, names=("Lyon", "Auckland")):
+    return [MapInput(names[0], c.ref, c.center_ref), MapInput(names[1], c.moving, c.center_moving)]
+
+
+def near(a, b, tol):
+    return abs(angle_diff_deg(a, b)) <= tol
+
+
+# Seeds of the point-symmetric room (two pillars, no boxes, short arcs) whose two views keep the truth and
+# its half turn within the margin, and whose walls do not tell them apart either (measured: ν within 0.04).
+SYMMETRIC_UNRESOLVED = [0, 1, 5, 7]
+
+
+@pytest.mark.parametrize("seed", SYMMETRIC_UNRESOLVED)
+def test_a_point_symmetric_pair_is_ambiguous_with_both_angles_and_not_used(seed):
+    c = window_case(seed, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
+    maps = case_maps(c)
+    pr = pair_result(maps, 0, 1, P, Warps(maps))
+    a = pr.ambiguity
+    assert pr.ambiguous and a is not None and a.verdict == "unresolved" and not a.used
+    angles = (a.best.theta_deg, a.runner_up.theta_deg)
+    # one hypothesis is the truth, the other its half turn (each within 1°), in either order
+    assert any(near(x, c.theta_deg, 1.0) and near(y, c.theta_deg + 180.0, 1.0)
+               for x, y in (angles, angles[::-1])), (angles, c.theta_deg)
+    # with the window on, both hypotheses carry their translation: the truth's is t*, the half turn's −t*
+    truth = a.best if near(a.best.theta_deg, c.theta_deg, 1.0) else a.runner_up
+    assert math.dist(truth.translation_m, c.translation_m) <= 0.1
+    assert abs(a.best.score - a.runner_up.score) < P.margin and abs(a.best.nu - a.runner_up.nu) < P.margin
+    # the pair is not used: its verification fails and names both angles
+    assert not pr.verification.passed and "ambiguous" in pr.verification.reason
+    assert f"{a.best.theta_deg:.1f}°" in pr.verification.reason
+    assert f"{a.runner_up.theta_deg:.1f}°" in pr.verification.reason
+    d = json.loads(json.dumps(pr.to_dict()))  # a plain serializable record
+    assert d["ambiguous"] is True and d["ambiguity"]["verdict"] == "unresolved"
+    assert d["ambiguity"]["theta_deg"] == [a.best.theta_deg, a.runner_up.theta_deg]
+    assert d["ambiguity"]["runner_up"]["translation_m"] == list(a.runner_up.translation_m)
+
+
+@pytest.mark.parametrize("seed", SYMMETRIC_UNRESOLVED[:2])
+def test_both_strategies_refuse_an_unresolved_pair(seed):
+    c = window_case(seed, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
+    orders = merge_team(case_maps(c), P)
+    assert not orders.accepted and "ambiguous pair Lyon←Auckland" in orders.reason
+    assert [a.verdict for a in orders.ambiguous] == ["unresolved"]
+    tree = merge_tree(case_maps(c), P)
+    assert not tree.accepted and "ambiguous pair Lyon←Auckland" in tree.reason  # the only edge is dropped
+    assert [a.verdict for a in tree.ambiguous] == ["unresolved"]
+    json.dumps(orders.to_dict()) and json.dumps(tree.to_dict())
+    # the rule off (margin 0, the thesis's rule): the same pair is used, true or half-turned
+    off = merge_team(case_maps(c), MergeParams(roi_m=8.0, window_m=0.5, ambiguity_margin=0.0))
+    assert off.ambiguous == ()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_an_asymmetric_pair_is_not_ambiguous(seed):
+    c = window_case(seed, "views", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
+    maps = case_maps(c)
+    pr = pair_result(maps, 0, 1, P, Warps(maps))
+    assert not pr.ambiguous and pr.to_dict()["ambiguous"] is False
+    assert pr.verification.passed and near(pr.alignment.theta_deg, c.theta_deg, 0.5)
+
+
+@pytest.fixture(scope="module")
+def pillars_in_an_offset_room():
+    """Two pillars point-symmetric about the center inside a room that is not (its walls are off-center):
+    a 4 m ROI sees only the pillars, whose half turn scores a little higher there than the truth; the
+    whole maps (walls) tell them apart."""
+    scene = room_scene(np.random.default_rng(0), n_boxes=0, room_center=(0.9, 0.5))
+    theta = 63.0
+    fa, fb = (0.2, -0.1, 0.3), (-0.4, 0.3, 0.3 + math.radians(theta))
+    ga, ca = partial_view(scene, fa, arc_viewpoints(90, 180, 1.8, k=8))
+    gb, cb = partial_view(scene, fb, arc_viewpoints(90, 180, 1.8, k=8))
+    return [MapInput("Lyon", ga, ca), MapInput("Auckland", gb, cb)], theta
+
+
+@pytest.mark.parametrize("window_m", [0.0, 0.5])
+def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_truth(pillars_in_an_offset_room,
+                                                                                   window_m):
+    maps, theta = pillars_in_an_offset_room
+    params = MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.05)
+    pr = pair_result(maps, 0, 1, params, Warps(maps))
+    a = pr.ambiguity
+    assert a is not None and a.used and a.verdict == "runner_up"
+    assert near(a.best.theta_deg, theta + 180.0, 1.0) and near(a.runner_up.theta_deg, theta, 1.0)
+    assert a.best.score >= a.runner_up.score  # the ROI prefers the half turn ...
+    assert a.runner_up.nu - a.best.nu >= 0.05  # ... the whole maps the truth
+    assert pr.verification.passed and near(pr.alignment.theta_deg, theta, 0.5)
+    for res in (merge_team(maps, params), merge_tree(maps, params)):
+        assert res.accepted and near(res.chosen.theta_deg["Auckland"], theta, 0.5), res.reason
+        assert [x.verdict for x in res.ambiguous] == ["runner_up"]
+    # without the rule the ROI's best, the half turn, is the pair's answer and fails verification
+    off = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.0))
+    assert not off.accepted and near(off.top.theta_deg["Auckland"], theta + 180.0, 1.0)
+
+
+def test_verdict_needs_the_margin_either_way():
+    assert verdict(0.70, 0.64, 0.05) == "best"
+    assert verdict(0.60, 0.66, 0.05) == "runner_up"
+    assert verdict(0.70, 0.66, 0.05) == "unresolved"
+    assert verdict(0.66, 0.70, 0.05) == "unresolved"
+
+
+def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
+    """A cycle's ambiguous pair is a text event of the merging robot naming both angles (logged once while
+    it is unchanged), read back from the .rrd."""
+    from circsim import record
+    from circsim.events import MergeCycle
+    from circsim.motion import trajectories
+    from circsim.record import RerunRecorder, read_recording
+    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.world import World
+
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    names = list(sc.robots.names)
+    trajs = trajectories(sc)
+    start = {n: trajs[n].start_pose() for n in names}
+    sim = SimpleNamespace(scenario=sc, world=World.from_scenario(sc), robot_names=names, start_poses=start,
+                          centers_given={n: record._to_frame(sc.world.center, start[n]) for n in names},
+                          center_world=tuple(sc.world.center), circle_radius=sc.robots.radius_m, seed=sc.seed)
+    c = window_case(0, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
+    res = merge_team(case_maps(c, names[:2]), P)
+    a = res.ambiguous[0]
+    rrd = tmp_path / "amb.rrd"
+    rec = RerunRecorder(rrd)
+    rec.on_start(sim)
+    truth = {names[0]: 0.0, names[1]: c.theta_deg}
+    for t in (1.0, 2.0):
+        rec.on_merge_cycle(MergeCycle(t, names[0], names[1], res, truth, False, {}, False, False))
+    rec.on_end(SimpleNamespace(to_dict=lambda: {"robots": {}, "sim_s": 2.0, "wall_s": 0.0, "interrupted": False,
+                                                 "false_merges": 0, "rejected_correct": 0}))
+    ev = [r["TextLog:text"][0] for r in read_recording(rrd)[f"/events/{names[0]}"] if not r["static"]]
+    amb = [x for x in ev if x.startswith("ambiguous pair")]
+    assert len(amb) == 1, ev
+    assert f"θ {a.best.theta_deg:.1f}°" in amb[0] and f"θ {a.runner_up.theta_deg:.1f}°" in amb[0]
+    assert "not used" in amb[0]

@@ -14,6 +14,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from .cache import BoundedCache
 from .grid import UNKNOWN_S, OccupancyGrid
 
 
@@ -250,7 +251,6 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
     r = rotation(-theta_deg)
     k = (np.arange(n) - (n - 1) / 2.0) * resolution
     rm = moving.resolution
-    half = n * resolution / 2.0
     # u_x = (c_x + r00 k_j + r01 k_i − o_x) / rm ; u_y = (c_y + r10 k_j + r11 k_i − o_y) / rm
     a = (center_moving[0] - moving.origin[0] + r[0, 0] * k) / rm
     b = r[0, 1] * k / rm
@@ -268,16 +268,38 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
         inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
         cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
         out[i, j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
-    # the rotated square's border: d = R(−θ)(k_j, k_i) is outside when |d_x| or |d_y| ≥ half; |d| = |k|,
-    # so only the lattice points at least (nearly) half away from the center can be outside
+    key = (n, float(resolution), float(theta_deg))
+    outside = _OUTSIDE.get(key)
+    if outside is None:
+        outside = _outside_square(n, resolution, float(theta_deg))
+        _OUTSIDE.put(key, outside)
+    if outside.size and outside[0] < 0:
+        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+    out.reshape(-1)[outside] = UNKNOWN_S
+    return out
+
+
+_OUTSIDE = BoundedCache(max_entries=720, max_bytes=16 * 2**20)
+
+
+def _outside_square(n: int, resolution: float, theta_deg: float) -> np.ndarray:
+    """The lattice points (flat indices) whose offset rotated by −θ leaves the ROI square, or [−1] when one
+    lies within 1e-9 of its border (then the reference's own arithmetic decides). It depends on the
+    lattice and θ only, so the searches of every map share it (kept in a bounded cache)."""
+    r = rotation(-theta_deg)
+    half = n * resolution / 2.0
+    # d = R(−θ)(k_j, k_i) is outside when |d_x| or |d_y| ≥ half; |d| = |k|, so only the lattice points at
+    # least (nearly) half away from the center can be outside
     ci, cj, kx, ky = _far_points(n, resolution)
     adx = np.abs(r[0, 0] * kx + r[0, 1] * ky)
     ady = np.abs(r[1, 0] * kx + r[1, 1] * ky)
     if (np.abs(adx - half) < _EXACT_EPS).any() or (np.abs(ady - half) < _EXACT_EPS).any():
-        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
+        return np.array([-1], np.int64)
     outside = (adx >= half) | (ady >= half)
-    out[ci[outside], cj[outside]] = UNKNOWN_S
-    return out
+    idx = ci[outside] * n + cj[outside]
+    idx = idx.astype(np.int32 if n * n < 2**31 else np.int64)
+    idx.setflags(write=False)
+    return idx
 
 
 @lru_cache(maxsize=8)

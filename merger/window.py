@@ -169,12 +169,14 @@ class WindowEvaluator:
         self.res = problem.ref.resolution
         self.k = lattice_coords(n, self.res)
         ref = problem.ref
-        self._pad = np.zeros((ref.height + 2, ref.width + 2), np.uint8)
-        self._pad[1:-1, 1:-1] = ref.states
-        self._padO = (self._pad == OCCUPIED_S).reshape(-1)
-        self._padF = (self._pad == FREE_S).reshape(-1)
         self.reach = problem.window_cells + 1  # translations evaluated: |a|, |b| ≤ reach (the window and
         self._tab = None                       # one cell beyond, for the refinement at its edge)
+        # the reference padded with unknown cells so that every window's ROI lies inside: a shifted
+        # block of it is then a plain slice (no clipping), whatever the map's size
+        (_, _, _, (plo_x, phi_x)), (_, _, _, (plo_y, phi_y)) = self._axes_table()
+        self._pad = np.zeros((ref.height + plo_y + phi_y, ref.width + plo_x + phi_x), np.uint8)
+        self._pad[plo_y:plo_y + ref.height, plo_x:plo_x + ref.width] = ref.states
+        self._padO = (self._pad == OCCUPIED_S).reshape(-1)
         self._q = None
         self._margin = 0
         self._mov: dict[float, np.ndarray] = {}
@@ -189,7 +191,8 @@ class WindowEvaluator:
     def _axes_table(self):
         """Per translation index −K..K: the padded reference columns (rows) of the ROI lattice about
         c_ref + t, with the reference's own arithmetic (:meth:`RotationProblem.center_at`, extract_roi),
-        and whether they form plain blocks."""
+        whether they form plain blocks, their first ones, and the padding (before, after) that holds
+        every one of them (cells outside the grid are unknown, as extract_roi reads them)."""
         if self._tab is None:
             ref, kk = self.problem.ref, self.reach
             steps = np.arange(-kk, kk + 1) * ref.resolution  # a · res, as offset_m
@@ -200,9 +203,8 @@ class WindowEvaluator:
                 cs[kk] = c  # t = 0 is the given center itself
                 idx = np.floor((cs[:, None] + self.k[None, :] - o) / ref.resolution).astype(np.int64)
                 block = (np.diff(idx, axis=1) == 1).all(axis=1)
-                first = idx[:, 0] + 1
-                inside = (idx[:, 0] >= 0) & (idx[:, -1] < size)
-                out.append((np.clip(idx, -1, size) + 1, block, first, inside))
+                lo, hi = max(1, -int(idx.min())), max(1, int(idx.max()) - size + 1)
+                out.append((idx + lo, block, idx[:, 0] + lo, (lo, hi)))
             self._tab = out
         return self._tab
 
@@ -286,7 +288,7 @@ class WindowEvaluator:
         """Per translation: agr̃, dis where the moving map is occupied, dis where the reference is,
         free/free (if asked), the reference ROI's occupied count; and the moving ROI's occupied count."""
         n, kk = self.n, self.reach
-        (cols_t, cb, cf, cin), (rows_t, rb, rf, rin) = self._axes_table()
+        (cols_t, cb, cf, _), (rows_t, rb, rf, _) = self._axes_table()
         ts = np.asarray(ts, np.intp).reshape(-1, 2)
         ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
         if ia.min() < 0 or ib.min() < 0 or ia.max() >= cols_t.shape[0] or ib.max() >= rows_t.shape[0]:
@@ -295,7 +297,7 @@ class WindowEvaluator:
         wp = self._pad.shape[1]
         block = cb[ia] & rb[ib]
         nt = ia.size
-        if (block & cin[ia] & rin[ib]).all():  # plain blocks inside the grid: shifted flat indices
+        if block.all():  # plain blocks (of the padded grid): shifted flat indices
             idx = (rf[ib] * wp + cf[ia])[:, None] + pflat[None, :]
         else:
             idx = rows_t[ib][:, pi] * wp + cols_t[ia][:, pj]

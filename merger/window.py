@@ -177,6 +177,7 @@ class WindowEvaluator:
         self._pad = np.zeros((ref.height + plo_y + phi_y, ref.width + plo_x + phi_x), np.uint8)
         self._pad[plo_y:plo_y + ref.height, plo_x:plo_x + ref.width] = ref.states
         self._padO = (self._pad == OCCUPIED_S).reshape(-1)
+        self._padflat = self._pad.reshape(-1)
         self._q = None
         self._margin = 0
         self._mov: dict[float, np.ndarray] = {}
@@ -329,8 +330,33 @@ class WindowEvaluator:
                     ff[r] = np.count_nonzero(padF2[np.ix_(rw, cl)] & mf)
         return agr, d_mo, d_ro, ff, sx, pflat.size
 
+    def _similarity_values(self, theta: float, ts):
+        """ω̃ at angle θ and translations ``ts`` when every window is a plain block of the padded
+        reference (the usual case; None otherwise): :meth:`_counts`'s gathers, fewer steps. The floats
+        are :func:`merger.similarity.index_from_counts`'s: integer counts, one correctly rounded division."""
+        (cols_t, cb, cf, _), (rows_t, rb, rf, _) = self._tab
+        kk = self.reach
+        ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
+        if ia.min() < 0 or ib.min() < 0 or ia.max() >= cols_t.shape[0] or ib.max() >= rows_t.shape[0]:
+            raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
+        if not (cb[ia] & rb[ib]).all():
+            return None
+        (_, _, pflat), mfp, _ = self._mov[theta]
+        st = self._padflat[(rf[ib] * self._pad.shape[1] + cf[ia])[:, None] + pflat[None, :]]
+        agr = (st == OCCUPIED_S).sum(axis=1)
+        tot = agr + (st == FREE_S).sum(axis=1)
+        if self._q.size:  # the reference-occupied cells of each window against the moving free cells
+            m = self._margin
+            shift = (rf[ib] - m) * (self.n + 2 * m) + (cf[ia] - m)
+            tot += mfp[self._q[None, :] - shift[:, None]].sum(axis=1)
+        return np.where(tot > 0, agr / np.maximum(tot, 1), 0.0)
+
     def _values(self, theta: float, ts) -> list[float]:
         m = self.problem.measure
+        if m == "similarity":
+            fast = self._similarity_values(theta, np.asarray(ts, np.intp).reshape(-1, 2))
+            if fast is not None:
+                return fast
         agr, d_mo, d_ro, ff, sx, sy = self._counts(theta, ts, free_agree=m == "birk_carpin")
         if m == "similarity":  # index_from_counts, inlined (Python ints: the same floats)
             return np.array([a / (a + d) if a + d else 0.0

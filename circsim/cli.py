@@ -142,6 +142,13 @@ def summary(res) -> str:
     lines += ["", f"false merges {d['false_merges']}   rejected correct {d['rejected_correct']}   "
               + (f"merge cycle median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
                  if mc["count"] else "no merge cycle")]
+    cs = d.get("consensus_s")
+    lines.append("consensus (every robot holds the same global alignment): "
+                 + ("never" if cs is None else f"first at {cs:.1f} s, held {d['consensus_held_s']:.1f} s in all"
+                    + ("" if d["consensus_final"] else ", not at the end"))
+                 + ("   shared hypotheses adopted " + ", ".join(f"{n} {r['hypotheses_adopted']}/{r['hypotheses_received']}"
+                                                        for n, r in d["robots"].items())
+                    if any(r["hypotheses_received"] for r in d["robots"].values()) else ""))
     return "\n".join(lines)
 
 

@@ -44,6 +44,8 @@ class MergeCycle:
     first_pair_correct : this cycle is the robot's first accepted correct merge of any ≥ 2 maps.
     teammates_placed : teammates that the alignment the robot holds after this cycle (accepted now or
         kept from earlier) places correctly, each within both tolerances.
+    adopted_from : not a merge cycle of the robot's own but a teammate's hypothesis it adopted (shared
+        hypotheses, :mod:`merger.shared`): the sender's name; "" for the robot's own cycles.
     """
 
     t: float
@@ -60,6 +62,7 @@ class MergeCycle:
     complete: bool = True
     first_pair_correct: bool = False
     teammates_placed: int = 0
+    adopted_from: str = ""
 
 
 class Observer:
@@ -80,7 +83,11 @@ class Observer:
         teammate is as new or newer (out-of-order or repeated delivery), so this one was dropped."""
 
     def on_merge_cycle(self, cycle: MergeCycle) -> None:
-        """A robot ran a merge cycle."""
+        """A robot ran a merge cycle (or adopted a teammate's hypothesis: ``cycle.adopted_from``)."""
+
+    def on_hypothesis(self, t: float, recipient: str, adoption) -> None:
+        """A teammate's hypothesis arrived (shared hypotheses) and was weighed: ``adoption`` is a
+        :class:`merger.shared.Adoption` (adopted or refused, and why)."""
 
     def on_event(self, t: float, level: str, text: str) -> None:
         """A human-readable event (level: "info", "warn", "error")."""

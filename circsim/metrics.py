@@ -12,6 +12,14 @@
 * ``rejected_correct`` — merge cycles whose best hypothesis was correct but rejected.
 * ``merge_cycle_ms`` — wall time of one merge cycle (all orders + verification): median and p95.
 * ``realtime_factor`` — simulated seconds per wall second of the run.
+* ``consensus_s`` — simulated seconds to the first time every robot holds the same global alignment: each
+  holds a placement of every map, and expressed in one frame (:func:`merger.team.compose`) all of them
+  agree within ``CONSENSUS_TOL_DEG`` (0.1°) and one cell (the SLAM grid's resolution); None if never.
+  ``consensus_final``: whether they still do at the end; ``consensus_held_s``: for how many simulated
+  seconds in all they did. With shared hypotheses
+  (``merger.share_hypotheses``) an adopted hypothesis is held like an accepted merge: it counts for
+  ``first_merge_s``, ``false_merges`` and ``teammates_placed`` (not for ``cycles`` or ``merge_cycle_ms``);
+  per robot ``hypotheses_received`` / ``hypotheses_adopted``.
 
 Beyond DESIGN.md, per robot: ``final_angle_error_deg`` and ``final_translation_error_m`` (per map, of the
 alignment held at the end) and ``first_merge_translation_error_m`` (the largest translation error of the
@@ -30,11 +38,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from merger.search import angle_diff_deg
+from merger.team import Placement, compose
 
 from .events import MergeCycle, Observer
 
 JUDGE_EPS_DEG = 1e-9
 JUDGE_EPS_M = 1e-9
+CONSENSUS_TOL_DEG = 0.1
 
 
 def judge(theta_deg: dict[str, float], truth_deg: dict[str, float], tol_deg: float):
@@ -87,6 +97,8 @@ class RobotMetrics:
     maps_published: int = 0
     maps_received: int = 0  # teammates' maps taken (newer than the one held)
     maps_stale: int = 0  # teammates' maps dropped: not newer than the one held (out of order, repeated)
+    hypotheses_received: int = 0  # teammates' hypotheses weighed (shared hypotheses)
+    hypotheses_adopted: int = 0
 
     @property
     def teammates_placed_final(self) -> int:
@@ -112,6 +124,9 @@ class RunResult:
     wall_s: float = 0.0
     interrupted: bool = False
     outputs: dict = field(default_factory=dict)
+    consensus_s: float | None = None
+    consensus_final: bool = False
+    consensus_held_s: float = 0.0
 
     @property
     def false_merges(self) -> int:
@@ -143,15 +158,71 @@ class RunResult:
             "realtime_factor": None if math.isinf(self.realtime_factor) else self.realtime_factor,
             "sim_s": self.sim_s, "wall_s": self.wall_s, "interrupted": self.interrupted,
             "all_merged": self.all_merged(), "outputs": self.outputs,
+            "consensus_s": self.consensus_s, "consensus_final": self.consensus_final,
+            "consensus_held_s": self.consensus_held_s,
         }
 
 
-class MetricsObserver(Observer):
-    """Accumulates :class:`RunResult` figures from the run's events."""
+def spread(held: dict[str, dict[str, Placement]], team) -> tuple[float, float] | None:
+    """How far apart the robots' global alignments are: every robot's placements (onto its own frame, per
+    map name) expressed in the first robot's frame, the largest angle and translation difference from that
+    robot's over all maps; None unless every robot of ``team`` holds a placement of every map."""
+    team = list(team)
+    if any(r not in held or any(k not in held[r] for k in team) for r in team):
+        return None
+    base = team[0]
+    ref = held[base]
+    d_deg = d_m = 0.0
+    for r in team[1:]:
+        p = compose(held[r], r, base)
+        for k in team:
+            d_deg = max(d_deg, abs(float(angle_diff_deg(p[k][0], ref[k][0]))))
+            d_m = max(d_m, math.dist(p[k][1], ref[k][1]))
+    return d_deg, d_m
 
-    def __init__(self, result: RunResult, arc_of) -> None:
+
+def in_consensus(held: dict[str, dict[str, Placement]], team, tol_deg: float = CONSENSUS_TOL_DEG,
+                 tol_m: float = 0.05) -> bool:
+    """Whether every robot holds the same global alignment, within ``tol_deg`` and ``tol_m`` (one cell)."""
+    s = spread(held, team)
+    return s is not None and s[0] <= tol_deg + JUDGE_EPS_DEG and s[1] <= tol_m + JUDGE_EPS_M
+
+
+class MetricsObserver(Observer):
+    """Accumulates :class:`RunResult` figures from the run's events; ``cell_m``: the consensus's
+    translation tolerance (one cell of the robots' grids)."""
+
+    def __init__(self, result: RunResult, arc_of, *, cell_m: float = 0.05) -> None:
         self.result = result
         self._arc_of = arc_of  # (robot, t) -> degrees travelled
+        self.cell_m = float(cell_m)
+        self.held: dict[str, dict[str, Placement]] = {}  # per robot, the placements of the alignment it holds
+        self._agree_since: float | None = None  # when the current consensus began (None: none now)
+
+    def on_hypothesis(self, t, recipient, adoption) -> None:
+        m = self.result.robots[recipient]
+        m.hypotheses_received += 1
+        m.hypotheses_adopted += bool(adoption.adopted)
+
+    def _hold(self, cycle: MergeCycle) -> None:
+        c = cycle.result.chosen
+        if c is None:
+            return
+        self.held[cycle.robot] = {k: (c.theta_deg[k], c.translation(k)) for k in c.theta_deg}
+        agree = in_consensus(self.held, self.result.robots, tol_m=self.cell_m)
+        self.result.consensus_final = agree
+        if agree and self.result.consensus_s is None:
+            self.result.consensus_s = cycle.t
+        if agree and self._agree_since is None:
+            self._agree_since = cycle.t
+        elif not agree and self._agree_since is not None:
+            self.result.consensus_held_s += cycle.t - self._agree_since
+            self._agree_since = None
+
+    def on_end(self, result) -> None:
+        if self._agree_since is not None:
+            self.result.consensus_held_s += max(self.result.sim_s - self._agree_since, 0.0)
+            self._agree_since = None
 
     def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
         self.result.robots[robot].maps_published += 1
@@ -165,15 +236,17 @@ class MetricsObserver(Observer):
 
     def on_merge_cycle(self, cycle: MergeCycle) -> None:
         m = self.result.robots[cycle.robot]
-        m.cycles += 1
-        m.partial_cycles += not cycle.complete
-        self.result.cycle_ms.append(cycle.result.wall_ms)
+        if not cycle.adopted_from:  # an adopted hypothesis is held, but it is no cycle of the robot's
+            m.cycles += 1
+            m.partial_cycles += not cycle.complete
+            self.result.cycle_ms.append(cycle.result.wall_ms)
         if cycle.teammates_placed != m.teammates_placed_final:
             m.teammates_placed.append([cycle.t, cycle.teammates_placed])
         if cycle.first_pair_correct:
             m.first_pair_merge_s = cycle.t
             m.first_pair_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)
         if cycle.result.accepted:
+            self._hold(cycle)
             m.accepted += 1
             m.final_angle_error_deg = dict(cycle.angle_error_deg)
             m.final_translation_error_m = dict(cycle.translation_error_m)

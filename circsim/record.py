@@ -233,8 +233,9 @@ class RerunRecorder(Observer):
             tr = ", ".join(f"{k} ({x:+.3f}, {y:+.3f}) m" for k in top.theta_deg if k != n
                            for x, y in [top.translation(k)])
             t_errs = ", ".join(f"{k} {100 * v:.1f} cm" for k, v in c.translation_error_m.items() if k != n)
+            what = f"adopted {c.adopted_from}'s hypothesis" if c.adopted_from else f"accepted merge (order {order})"
             self._text(n, "ERROR" if c.false_merge else "INFO",
-                       f"accepted merge (order {order}): θ {thetas}; t {tr}; ν {nus}; angle error {errs}"
+                       f"{what}: θ {thetas}; t {tr}; ν {nus}; angle error {errs}"
                        + (f"; translation error {t_errs}" if t_errs else "") + f" → {verdict}")
             self._log_placed_centers(c)
             if c.first_pair_correct and not c.first_correct:
@@ -263,6 +264,14 @@ class RerunRecorder(Observer):
                 continue
             self.ambiguous_logged[key] = state
             self._text(c.robot, "INFO" if a.used else "WARN", a.describe())
+
+    def on_hypothesis(self, t, recipient, adoption) -> None:
+        """A received hypothesis: refused ones as a DEBUG line with the reason (an adopted one is logged
+        by the merge-cycle event that follows it, judged against ground truth)."""
+        if adoption.adopted:
+            return
+        self._at(t, self.step)
+        self._text(recipient, "DEBUG", f"refused {adoption.sender}'s hypothesis: {adoption.reason}")
 
     def on_event(self, t: float, level: str, text: str) -> None:
         self._at(t, self.step)
@@ -426,7 +435,8 @@ class RerunRecorder(Observer):
                     continue
                 onto = o.order[0] if moving == o.order[1] else "+".join(o.order[:o.order.index(moving)])
                 omega.append((f"{al.measure} {moving}→{onto}", al.score, None))
-        self._series(f"{base}/omega", omega)
+        if omega:  # an adopted hypothesis (shared) has no searches of the robot's own
+            self._series(f"{base}/omega", omega)
         top, whole = res.top, cfg.verification == "whole_map"
         self._series(f"{base}/nu", [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in top.checks.items()]
                      + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, _GREY)])
@@ -439,7 +449,8 @@ class RerunRecorder(Observer):
                       for m, e in c.translation_error_m.items() if m != n]
             if t_errs:
                 self._series(f"{base}/translation_error_m", t_errs)
-        self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
+        if not c.adopted_from:
+            self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
         self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, _GREY),
                                                   ("maps merged", len(res.top.theta_deg), None),
                                                   ("ambiguous pairs not used",

@@ -10,6 +10,11 @@ tick share one cycle. Each cycle is judged against ground truth: the rotation
 θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
 center error (:func:`truth_translation`, :func:`circsim.metrics.judge_placement`).
 
+With ``merger.share_hypotheses`` every robot also sends the alignment it holds with each map it sends,
+over a second network of the same latency, jitter and loss (its own random stream, so that sharing does
+not change the maps' deliveries); after the tick's merge cycles each robot weighs what arrived
+(:meth:`merger.TeamMerger.consider`), and an adopted hypothesis is judged like an accepted cycle.
+
 Randomness: one ``numpy.random.SeedSequence(seed)`` is split into independent streams per purpose
 and robot (laser noise, SLAM drift, network, center error, publish phases), so the same scenario and
 seed give the same run, and changing e.g. the network does not change the laser noise.
@@ -31,7 +36,15 @@ from merger.team import MergeParams
 
 from .events import MergeCycle, Observer, RobotTick
 from .laser import scan as laser_scan
-from .metrics import JUDGE_EPS_DEG, JUDGE_EPS_M, MetricsObserver, RobotMetrics, RunResult, judge_placement
+from .metrics import (
+    CONSENSUS_TOL_DEG,
+    JUDGE_EPS_DEG,
+    JUDGE_EPS_M,
+    MetricsObserver,
+    RobotMetrics,
+    RunResult,
+    judge_placement,
+)
 from .motion import CircleTrajectory, trajectories
 from .network import Network
 from .scenario import Scenario, scenario_to_dict
@@ -96,6 +109,10 @@ class Simulation:
         ss = np.random.SeedSequence(self.seed)
         streams = iter(ss.spawn(3 + 2 * len(self.robot_names)))
         self.network = Network(sc.network, np.random.default_rng(next(streams)))
+        # spawned after the others: the existing streams stay what they were before sharing existed
+        self.hypothesis_network = Network(sc.network, np.random.default_rng(ss.spawn(1)[0]))
+        self.share = bool(sc.merger.share_hypotheses)
+        self._consensus_told = False
         err_rng = np.random.default_rng(next(streams))
         phase_rng = np.random.default_rng(next(streams))
         self.world = World.from_scenario(sc)
@@ -128,7 +145,7 @@ class Simulation:
                                         for j in self.robot_names} for i in self.robot_names}
         self.result = RunResult(sc.name, self.seed, run_params(sc),
                                 {n: RobotMetrics() for n in self.robot_names})
-        self.observers = [MetricsObserver(self.result, self.arc_deg), *observers]
+        self.observers = [MetricsObserver(self.result, self.arc_deg, cell_m=sc.slam.resolution_m), *observers]
 
     def arc_deg(self, robot: str, t: float) -> float:
         """Degrees of its circle the robot has travelled by ``t`` (0 unless it drives: motion online)."""
@@ -159,6 +176,8 @@ class Simulation:
         for r in self.robots.values():
             if r.inbox_new:
                 self._merge(r, t)
+        if self.share:
+            self._weigh_hypotheses(t)
 
     def _est_in_world(self, name: str, est) -> tuple[float, float, float]:
         s = self.start_poses[name]
@@ -177,6 +196,9 @@ class Simulation:
             if t + eps >= r.next_send_s and n in r.merger.maps:
                 r.next_send_s += self.scenario.network.period_s
                 self.network.broadcast(n, self.robot_names, r.merger.maps[n], t)
+                hyp = r.merger.hypothesis() if self.share else None
+                if hyp is not None:
+                    self.hypothesis_network.broadcast(n, self.robot_names, hyp, t)
         for n, r in self.robots.items():
             for m in self.network.deliver(n, t + eps):
                 fresh = r.merger.receive(m.payload)
@@ -189,7 +211,18 @@ class Simulation:
         r.inbox_new.clear()
         if not r.merger.ready():
             return
-        res = r.merger.cycle(now=t)
+        self._judge(r, t, trigger, r.merger.cycle(now=t))
+
+    def _weigh_hypotheses(self, t: float) -> None:
+        for n, r in self.robots.items():
+            for m in self.hypothesis_network.deliver(n, t + 1e-9):
+                a = r.merger.consider(m.payload, now=t)
+                self._emit("on_hypothesis", t, n, a)
+                if a.adopted:
+                    self._judge(r, t, m.sender, a.result, adopted_from=m.sender)
+
+    def _judge(self, r: Robot, t: float, trigger: str, res, adopted_from: str = "") -> None:
+        """Judge a merge result against ground truth and tell the observers (a :class:`MergeCycle`)."""
         held = [k for k in r.merger.team if k in r.merger.maps]
         truth = {k: self.truth_deg[r.name][k] for k in held}
         truth_t = {k: self.truth_translation_m[r.name][k] for k in held}
@@ -211,7 +244,11 @@ class Simulation:
                                                 res.accepted and not correct, truth_translation_m=truth_t,
                                                 translation_error_m=t_errors, complete=complete,
                                                 first_pair_correct=first_pair,
-                                                teammates_placed=r.teammates_placed))
+                                                teammates_placed=r.teammates_placed, adopted_from=adopted_from))
+        if self.result.consensus_s == t and not self._consensus_told:
+            self._consensus_told = True
+            self._emit("on_event", t, "info", f"CONSENSUS: every robot holds the same global alignment (within "
+                                              f"{CONSENSUS_TOL_DEG:g}° and one cell) at {t:.1f} s")
 
     def run(self) -> RunResult:
         """Run to ``duration_s``. Ctrl-C stops the run at the end of the current tick (so every observer

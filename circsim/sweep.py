@@ -22,7 +22,10 @@ cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``,
 ``final_translation_error_m.<robot>`` (the largest error over that robot's teammates, of the alignment it
 held at the end; empty if it never accepted one), ``final_angle_error_deg.max`` /
 ``final_translation_error_m.max`` (the largest over the robots), ``first_merge_translation_error_m.<robot>``
-(the largest translation error of its first correct merge), ``run_key``.
+(the largest translation error of its first correct merge), ``consensus_s`` / ``consensus_final`` (the
+first time every robot held the same global alignment, whether they still did at the end, and for how
+many seconds in all they did; see
+:mod:`circsim.metrics`), ``hypotheses_adopted`` (shared hypotheses adopted, all robots), ``run_key``.
 """
 
 from __future__ import annotations
@@ -248,6 +251,10 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     cycles = sum(r["cycles"] for r in robots.values())
     row.update(false_merges=rec["false_merges"], rejected_correct=rec["rejected_correct"], cycles=cycles,
                rejected_correct_rate=rec["rejected_correct"] / cycles if cycles else None)
+    row["consensus_s"] = rec.get("consensus_s")
+    row["consensus_final"] = rec.get("consensus_final")
+    row["consensus_held_s"] = rec.get("consensus_held_s")
+    row["hypotheses_adopted"] = sum(r.get("hypotheses_adopted", 0) for r in robots.values())
     row["merge_cycle_ms.median"] = rec["merge_cycle_ms"]["median"]
     row["merge_cycle_ms.p95"] = rec["merge_cycle_ms"]["p95"]
     row.update(realtime_factor=rec["realtime_factor"], sim_s=rec["sim_s"], wall_s=rec["wall_s"],
@@ -540,7 +547,8 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
         s["all_merged_frac"] = sum(bool(r["all_merged"]) for r in rs) / len(rs)
         for m in ("first_merge_s.mean", "first_merge_arc_deg.mean", "rejected_correct_rate",
                   "merge_cycle_ms.median", "realtime_factor", "top_error_deg.median",
-                  "top_translation_error_m.median", "final_translation_error_m.max"):
+                  "top_translation_error_m.median", "final_translation_error_m.max", "consensus_s",
+                  "consensus_held_s"):
             q1, med, q3 = _quantiles([r.get(m) for r in rs])
             s[f"{m}.median"], s[f"{m}.q1"], s[f"{m}.q3"] = med, q1, q3
         s["false_merges.total"] = sum(r["false_merges"] for r in rs)
@@ -548,6 +556,7 @@ def summarize(rows: list[dict], axes: list[Axis]) -> list[dict]:
         s["near_180_proposed.total"] = sum(r.get("near_180_proposed") or 0 for r in rs)
         s["near_180_accepted.total"] = sum(r.get("near_180_accepted") or 0 for r in rs)
         s["near_180_chosen.total"] = sum(r.get("near_180_chosen") or 0 for r in rs)
+        s["consensus_frac"] = sum(r.get("consensus_s") is not None for r in rs) / len(rs)
         out.append(s)
     return out
 
@@ -607,7 +616,8 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
     keys = [a.key for a in axes]
     head = "  ".join(f"{k:>24}" for k in keys) + (
         f"  {'runs':>4} {'merged':>6} {'first merge s':>17} {'arc deg':>17} {'false':>5} "
-        f"{'rej.corr. rate':>17} {'top err°':>8} {'top err cm':>10} {'180° prop/acc':>13} {'cycle ms':>8}")
+        f"{'rej.corr. rate':>17} {'top err°':>8} {'top err cm':>10} {'180° prop/acc':>13} {'cycle ms':>8} "
+        f"{'consensus s':>17}")
     lines = [head]
     for s in summary:
         def iqr(m, fmt="{:.1f}", s=s):
@@ -618,5 +628,6 @@ def format_summary(summary: list[dict], axes: list[Axis]) -> str:
             f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['top_error_deg.median.median']):>8} "
             f"{f(_cm(s.get('top_translation_error_m.median.median'))):>10} "
             f"{s['near_180_proposed.total']:>7}/{s['near_180_accepted.total']:<5} "
-            f"{f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8}"))
+            f"{f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8} "
+            f"{iqr('consensus_s') + ' ' + format(s['consensus_frac'], '.0%'):>17}"))
     return "\n".join(lines)

@@ -6,6 +6,10 @@ partial team merges what it has); an accepted hypothesis replaces the kept align
 never discards a good earlier one. A cycle reuses the robot's own earlier search of a pair of maps that
 has not changed since (the searches are deterministic: same result).
 
+With shared hypotheses (:mod:`merger.shared`), the robot broadcasts the alignment it holds
+(:meth:`TeamMerger.hypothesis`) and weighs a teammate's (:meth:`TeamMerger.consider`): it adopts it
+only when it verifies on the robot's own maps and scores higher there than the alignment it holds.
+
 Two strategies: ``orders`` (the thesis: every merge order, :func:`merger.team.merge_team`) and ``tree``
 (pairwise alignments kept per map version, the team assembled along a maximum spanning tree of the
 verified pairs, :func:`merger.tree.merge_tree`).
@@ -16,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .grid import OccupancyGrid
+from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
 from .team import MapInput, MergeParams, TeamMergeResult, merge_team
 from .tree import merge_tree
 
@@ -56,6 +61,7 @@ class TeamMerger:
     cycles: int = 0
     reuse: bool = True  # reuse the pair alignment of two unchanged maps from the previous cycle
     strategy: str = "orders"
+    adopted: int = 0  # received hypotheses adopted
     _pairs: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -97,6 +103,26 @@ class TeamMerger:
             self.current = result
             self.current_stamp = now
         return result
+
+    def hypothesis(self) -> HypothesisMessage | None:
+        """The alignment held, as a message to share (None: none held)."""
+        if self.current is None:
+            return None
+        return hypothesis_of(self.current, self.current_stamp if self.current_stamp is not None else 0.0)
+
+    def consider(self, msg: HypothesisMessage, now: float | None = None) -> Adoption:
+        """Weigh a teammate's hypothesis (:func:`merger.shared.adopt`); an adopted one becomes the held
+        alignment, as an accepted merge cycle's does."""
+        if msg.robot not in self.team or msg.robot == self.self_name:
+            raise ValueError(f"hypothesis from {msg.robot!r}: not a teammate of {self.self_name!r} ({self.team})")
+        if self.self_name not in self.maps:
+            return Adoption(msg.robot, msg.stamp, False, f"{self.self_name} holds no map of its own yet")
+        a = adopt(self.inputs(), msg, self.current, self.params)
+        if a.adopted:
+            self.current = a.result
+            self.current_stamp = msg.stamp if now is None else now
+            self.adopted += 1
+        return a
 
     def update(self, msg: MapMessage, now: float | None = None) -> TeamMergeResult | None:
         """Take a new map and run a merge cycle; returns the cycle (None if not ready or stale)."""

@@ -144,6 +144,8 @@ def test_room_from_wall_segments(tmp_path):
      "scene.yaml: center_error.per_robot.Bob: expected a robot name (one of Lyon, Auckland, Nevers)"),
     ("merger: {measure: sad}", "scene.yaml: merger.measure: expected one of 'similarity', 'birk_carpin', 'ncc'"),
     ("network: {loss: 1}", "scene.yaml: network.loss: expected a number in [0, 1), got 1"),
+    ("merger: {share_hypotheses: maybe}", "scene.yaml: merger.share_hypotheses: expected true or false, got 'maybe'"),
+    ("merger: {share_hypotheses: 1}", "scene.yaml: merger.share_hypotheses: expected true or false, got 1"),
     ("output: {rrd: 3}", "scene.yaml: output.rrd: expected null or a path, got 3"),
     ("- 1\n- 2\n", "scene.yaml: (top level): expected a mapping of scenario sections"),
     ("robots: [1, 2]", "scene.yaml: robots: expected a mapping with keys names"),

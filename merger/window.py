@@ -52,6 +52,7 @@ import hashlib
 import math
 import threading
 from collections import OrderedDict
+from functools import lru_cache
 
 import numpy as np
 import scipy.fft as sfft
@@ -498,11 +499,13 @@ def _peaks(ts, table, pool: int, limit: int):
     return picked
 
 
+@lru_cache(maxsize=16)
 def _tie_rank(k: int) -> np.ndarray:
     """The reference's tie order over translations (nearest first), as a rank per (b + k, a + k)."""
     rank = np.empty((2 * k + 1, 2 * k + 1), np.int64)
-    for i, (a, b) in enumerate(translation_offsets(k)):
-        rank[b + k, a + k] = i
+    ts = np.array(translation_offsets(k), np.int64).reshape(-1, 2)
+    rank[ts[:, 1] + k, ts[:, 0] + k] = np.arange(len(ts))
+    rank.setflags(write=False)
     return rank
 
 

@@ -10,7 +10,9 @@
 * ``false_merges`` — accepted alignments that are not correct (any angle error > ``correct_tol_deg`` or
   any translation error > ``correct_tol_m``).
 * ``rejected_correct`` — merge cycles whose best hypothesis was correct but rejected.
-* ``merge_cycle_ms`` — wall time of one merge cycle (all orders + verification): median and p95.
+* ``merge_cycle_ms`` — cost of one merge cycle (all orders + verification): median and p95 of its wall time
+  plus the computing time of the pair results it took from the robots' shared memo (:mod:`merger.memo`): what
+  the cycle costs a robot computing alone.
 * ``realtime_factor`` — simulated seconds per wall second of the run.
 * ``consensus_s`` — simulated seconds to the first time every robot holds the same global alignment: each
   holds a placement of every map, and expressed in one frame (:func:`merger.team.compose`) all of them
@@ -239,7 +241,7 @@ class MetricsObserver(Observer):
         if not cycle.adopted_from:  # an adopted hypothesis is held, but it is no cycle of the robot's
             m.cycles += 1
             m.partial_cycles += not cycle.complete
-            self.result.cycle_ms.append(cycle.result.wall_ms)
+            self.result.cycle_ms.append(cycle.result.cost_ms)
         if cycle.teammates_placed != m.teammates_placed_final:
             m.teammates_placed.append([cycle.t, cycle.teammates_placed])
         if cycle.first_pair_correct:

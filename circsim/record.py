@@ -35,7 +35,7 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
     /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
     /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
     /plots/<robot>/translation_error_m      Scalars: |t − t*| (metres) per teammate, at every accepted merge
-    /plots/<robot>/cycle_ms                 Scalars: merge cycle wall time
+    /plots/<robot>/cycle_ms                 Scalars: merge cycle cost (wall time + shared results taken, merger.memo)
     /plots/<robot>/teammates_placed         Scalars: teammates its held alignment places correctly, and the
                                             maps of the cycle (a partial team merges fewer than all)
     /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
@@ -450,7 +450,7 @@ class RerunRecorder(Observer):
             if t_errs:
                 self._series(f"{base}/translation_error_m", t_errs)
         if not c.adopted_from:
-            self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.wall_ms, self.colours[n])])
+            self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.cost_ms, self.colours[n])])
         self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, _GREY),
                                                   ("maps merged", len(res.top.theta_deg), None),
                                                   ("ambiguous pairs not used",
@@ -524,7 +524,7 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
                                   ("angle_error_deg", "accepted angle error vs truth (°)"),
                                   ("translation_error_m", "accepted translation error vs truth (m)"))]
         ts.append(rrb.TimeSeriesView(name=f"{n}: teammates correctly placed", origin=f"/plots/{p}/teammates_placed"))
-        ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle wall time (ms)", origin=f"/plots/{p}/cycle_ms"))
+        ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle cost (ms)", origin=f"/plots/{p}/cycle_ms"))
         return rrb.Vertical(*ts, name=n)
 
     right = rrb.Vertical(rrb.Tabs(*[plots(n, p) for n, p in robots]),

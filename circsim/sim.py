@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from merger.memo import Memo
 from merger.online import MapMessage, TeamMerger
 from merger.team import MergeParams
 
@@ -102,8 +103,11 @@ def run_params(sc: Scenario) -> dict:
 class Simulation:
     """A run of one scenario. ``Simulation(sc, observers).run()`` returns the :class:`RunResult`."""
 
-    def __init__(self, scenario: Scenario, observers: list[Observer] = ()) -> None:
+    def __init__(self, scenario: Scenario, observers: list[Observer] = (), *, share_searches: bool = True) -> None:
         sc = self.scenario = scenario
+        # the robots hold the same teammates' maps and would search the same pairs: each is computed once
+        # and its time charged to every robot that takes it (merger.memo; results and metrics unchanged)
+        self.memo = Memo() if share_searches else None
         self.seed = int(sc.seed)
         self.robot_names = list(sc.robots.names)
         ss = np.random.SeedSequence(self.seed)
@@ -129,7 +133,7 @@ class Simulation:
             c_given = (c_true[0] + errors[n][0], c_true[1] + errors[n][1])
             phase = float(phase_rng.uniform(0.0, sc.slam.publish_period_s))
             tm = TeamMerger(n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps,
-                            strategy=sc.merger.strategy)
+                            strategy=sc.merger.strategy, memo=self.memo)
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase)

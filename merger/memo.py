@@ -12,8 +12,8 @@ would pay alone, each entry keeps the wall time its computation took, and a call
 result is *charged* that time (:attr:`Memo.charged_ms`, read and reset by the merge cycle;
 :attr:`merger.team.TeamMergeResult.cost_ms`).
 
-Keys are content digests (:func:`map_key`), never object identities or scans; the memo is bounded in
-entries (an entry may hold grids: a verified pair's warps, an alignment's deferred evidence).
+Keys are map versions or content digests (:func:`map_key`), never object identities or scans; the memo
+is bounded in entries (an entry may hold grids: an alignment's deferred evidence).
 """
 
 from __future__ import annotations
@@ -33,9 +33,10 @@ def grid_key(grid) -> tuple:
 
 
 def map_key(m) -> tuple:
-    """A content key of a :class:`merger.team.MapInput`: name, grid content and center (not its version:
-    two versions with the same content give the same results)."""
-    return (m.name, grid_key(m.grid), (float(m.center[0]), float(m.center[1])))
+    """A key of a :class:`merger.team.MapInput`: its owner, its ``version`` when it has one (by contract a
+    version identifies the owner's grid: a map message's stamp), else its grid's content; and its center."""
+    ident = ("version", m.version) if m.version is not None else grid_key(m.grid)
+    return (m.name, ident, (float(m.center[0]), float(m.center[1])))
 
 
 class Memo:

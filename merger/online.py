@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .grid import OccupancyGrid
+from .memo import Memo
 from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
 from .team import MapInput, MergeParams, TeamMergeResult, merge_team
 from .tree import merge_tree
@@ -63,6 +64,7 @@ class TeamMerger:
     strategy: str = "orders"
     adopted: int = 0  # received hypotheses adopted
     _pairs: dict = field(default_factory=dict, repr=False)
+    memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.memo)
 
     def __post_init__(self) -> None:
         self.team = tuple(self.team)
@@ -97,7 +99,7 @@ class TeamMerger:
         if not self.ready():
             raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
         merge = merge_tree if self.strategy == "tree" else merge_team
-        result = merge(self.inputs(), self.params, reuse=self._pairs if self.reuse else None)
+        result = merge(self.inputs(), self.params, reuse=self._pairs if self.reuse else None, memo=self.memo)
         self.cycles += 1
         if result.accepted:
             self.current = result

@@ -21,6 +21,7 @@ import numpy as np
 
 from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
+from .memo import Memo, map_key
 from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
@@ -170,6 +171,13 @@ class TeamMergeResult:
     wall_ms: float = 0.0
     ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
     ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.ambiguity`)
+    charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.memo`)
+
+    @property
+    def cost_ms(self) -> float:
+        """What the cycle costs a robot computing alone: its wall time and the time of the shared results
+        it took (:mod:`merger.memo`)."""
+        return self.wall_ms + self.charged_ms
 
     @property
     def reason(self) -> str:
@@ -193,6 +201,7 @@ class TeamMergeResult:
 
     def to_dict(self) -> dict:
         return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
+                "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
                 "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
                 "chosen": self.chosen.to_dict() if self.chosen else None,
                 "orders": [o.to_dict() for o in self.orders]}
@@ -303,14 +312,16 @@ def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergePara
 
 
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
-                reuse: dict | None = None, warps: Warps | None = None):
+                reuse: dict | None = None, warps: Warps | None = None, memo: Memo | None = None):
     """Search the placements of one order; returns (θ, t) onto map 0 per map index, the search steps and
     the steps' ambiguities (:func:`merger.ambiguity.resolve`: a step whose runner-up scores within the
     margin is verified on the whole maps under both hypotheses, and takes the one that evidence separates).
 
     ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
-    alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`."""
+    alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`.
+    ``memo``: steps shared with other callers (:mod:`merger.memo`), keyed by the maps the step depends on:
+    the ones placed before it (their placements follow from them) and the moving one."""
     warps = Warps(maps) if warps is None else warps
     first = maps[order[0]]
     sup = first.grid
@@ -323,8 +334,15 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
         if hit is None:
             prob = problem_for(sup, first.center, m, params)
             ref = "+".join(maps[x].name for x in order[:order.index(k)])
-            hit = resolve(prob, search(prob, params.method), params.margin,
-                          _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
+
+            def step(prob=prob, ref=ref, sup=sup, k=k, m=m):
+                return resolve(prob, search(prob, params.method), params.margin,
+                               _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
+            if memo is None:
+                hit = step()
+            else:
+                before = tuple(map_key(maps[x]) for x in order[:order.index(k)])
+                hit = memo.get(("order-step", before, map_key(m), params), step)
             if key is not None:
                 reuse[key] = hit
         al, amb = hit
@@ -389,18 +407,22 @@ def _beyond(order: OrderResult) -> str:
 
 
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
-               reuse: dict | None = None) -> TeamMergeResult:
+               reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
 
     Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
     ``reuse`` (a dict kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): pair
     alignments of maps that carry a ``version`` are reused while both maps are unchanged; after the
-    cycle it holds only this cycle's pairs. The result is the same as without it.
+    cycle it holds only this cycle's pairs. The result is the same as without it. ``memo``
+    (:mod:`merger.memo`): search steps shared with the other robots of a simulation; the result is the
+    same, its ``charged_ms`` the computing time of the steps taken from the memo.
     """
     t0 = time.perf_counter()
+    if memo is not None:
+        memo.take_charged_ms()
     orders = merge_orders(len(maps))
     warps = Warps(maps)
-    aligned = [align_order(maps, o, params, reuse, warps) for o in orders]
+    aligned = [align_order(maps, o, params, reuse, warps, memo) for o in orders]
     if reuse is not None:  # keep only this cycle's pairs
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
@@ -418,7 +440,8 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
     return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
-                           (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb))
+                           (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb),
+                           memo.take_charged_ms() if memo is not None else 0.0)
 
 
 def _ambiguity(results: list[OrderResult], accepted: list[int], best: int, margin: float) -> str:

@@ -39,6 +39,7 @@ import numpy as np
 
 from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
+from .memo import Memo, map_key
 from .search import Alignment, angle_diff_deg, search, wrap_deg
 from .superpose import fuse
 from .team import (
@@ -218,7 +219,7 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
 
 
 def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # noqa: B008 (frozen)
-               reuse: dict | None = None) -> TeamMergeResult:
+               reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
 
     ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): every pair's
@@ -226,10 +227,13 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     pairs. The result has one hypothesis (``orders[0]``): the placed maps in tree order, its ``steps``
     the tree edges' pair searches as (moving map, alignment) — the later map of the pair in ``maps``
     onto the earlier one, in that map's frame — and its ``checks`` the placed pairs verified on map 0's
-    frame."""
+    frame. ``memo`` (:mod:`merger.memo`): pair results shared with the other robots of a simulation (the
+    result is the same; its ``charged_ms`` is the computing time of the pairs taken from the memo)."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
     t0 = time.perf_counter()
+    if memo is not None:
+        memo.take_charged_ms()
     warps = Warps(maps)
     pairs: dict[tuple[int, int], PairResult] = {}
     live = set()
@@ -237,7 +241,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         key = _pair_key(maps[i], maps[j], params) if reuse is not None else None
         hit = reuse.get(key) if key is not None else None
         if hit is None:
-            hit = pair_result(maps, i, j, params, warps)
+            if memo is None:
+                hit = pair_result(maps, i, j, params, warps)
+            else:
+                hit = memo.get(("tree-pair", map_key(maps[i]), map_key(maps[j]), params),
+                               lambda i=i, j=j: pair_result(maps, i, j, params, warps))
             if key is not None:
                 reuse[key] = hit
         live.add(key)
@@ -281,4 +289,5 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
     return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
-                           guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None))
+                           guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None),
+                           memo.take_charged_ms() if memo is not None else 0.0)

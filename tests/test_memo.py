@@ -42,10 +42,14 @@ def test_keys_follow_content_not_identity():
     changed[3, 4] = OCCUPIED_S if changed[3, 4] != OCCUPIED_S else 0
     assert grid_key(OccupancyGrid(changed, g.resolution, g.origin)) != grid_key(g)
     assert grid_key(OccupancyGrid(g.states, g.resolution, (0.0, 0.0))) != grid_key(g)  # geometry counts
-    a = MapInput("Lyon", g, (0.1, 0.2), version=1)
-    assert map_key(a) == map_key(MapInput("Lyon", same, (0.1, 0.2), version=7))  # versions do not matter
-    assert map_key(a) != map_key(MapInput("Lyon", g, (0.1, 0.25)))  # the center does
+    a = MapInput("Lyon", g, (0.1, 0.2))
+    assert map_key(a) == map_key(MapInput("Lyon", same, (0.1, 0.2)))  # without a version: the content
+    assert map_key(a) != map_key(MapInput("Lyon", g, (0.1, 0.25)))  # the center counts
     assert map_key(a) != map_key(MapInput("Oslo", g, (0.1, 0.2)))  # and the owner
+    # with a version (a map message's stamp, which identifies the owner's grid): the version
+    v1 = MapInput("Lyon", g, (0.1, 0.2), version=1.5)
+    assert map_key(v1) == map_key(MapInput("Lyon", same, (0.1, 0.2), version=1.5))
+    assert map_key(v1) != map_key(MapInput("Lyon", g, (0.1, 0.2), version=2.5))
 
 
 def test_the_memo_is_bounded():

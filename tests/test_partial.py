@@ -59,7 +59,7 @@ def test_first_merge_needs_every_teammate_and_first_pair_comes_no_later(min_maps
 
 def _cycle(t, accepted, correct, complete, placed, first_pair=False):
     class Res:
-        wall_ms = 1.0
+        wall_ms = cost_ms = 1.0
         chosen = None  # no placements: nothing for the consensus to compare
 
     r = Res()

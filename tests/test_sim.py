@@ -209,3 +209,34 @@ def test_offline_motion_travels_no_arc():
     assert arcs and set(arcs) == {0.0}
     merged = [r for r in res["robots"].values() if r["first_merge_s"] is not None]
     assert merged and all(r["first_merge_arc_deg"] == 0.0 for r in merged)
+
+
+@pytest.mark.parametrize("name, sets", [
+    ("scene1", ("duration_s=8", "merger.window_m=0.5", "center_error.magnitude_m=0.25")),  # orders, windowed
+    ("hall4", ("duration_s=8",)),  # tree
+])
+def test_sharing_searches_between_robots_changes_no_result(name, sets):
+    """The robots of a run share the pair searches they would all compute (merger.memo): every merge
+    cycle's evidence and every metric is the same as with each robot computing alone, the memo does share
+    results, and a cycle that took shared results is charged their computing time (its cost ≥ its wall)."""
+    def run(share):
+        cycles = []
+
+        class Collect(Observer):
+            def on_merge_cycle(self, c):
+                cycles.append((c.t, c.robot, c.result.to_dict()["orders"], c.correct, c.first_correct))
+                costs.append((c.result.wall_ms, c.result.charged_ms))
+
+        costs = []
+        sim = Simulation(scene(name, *sets), [Collect()], share_searches=share)
+        d = sim.run().to_dict()
+        for k in ("wall_s", "realtime_factor", "merge_cycle_ms"):
+            d.pop(k)
+        return d, cycles, costs, sim.memo
+
+    (a, ca, costs_a, memo), (b, cb, costs_b, none) = run(True), run(False)
+    assert none is None and memo.shared > 0 and memo.computed > 0
+    assert a == b
+    assert len(ca) == len(cb) > 5 and ca == cb
+    assert any(charged > 0 for _, charged in costs_a)
+    assert all(charged == 0.0 for _, charged in costs_b)

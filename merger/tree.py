@@ -3,8 +3,10 @@
 The thesis's procedure (:func:`merger.team.merge_team`, ``strategy: orders``) searches every merge order
 again whenever any map changes: N(N−1)/2 orders of N−1 searches each, most of them onto superpositions
 that are new every cycle. Here every *pair* of raw maps is searched once per pair of map versions and
-verified on its own (ν_ij on the whole maps, in map i's frame); a new map from one robot costs its N−1
-pair searches, every other pair is reused from the previous cycle. The team map is then assembled:
+verified on its own (ν_ij on the whole maps, in the frame of the map whose name comes first: every robot
+searches a pair alike, and a simulation's robots share it, :mod:`merger.memo`); a new map from one robot
+costs its N−1 pair searches, every other pair is reused from the previous cycle. The team map is then
+assembled:
 
 1. the verified pairs are the edges of a graph weighted by ν; its maximum spanning tree (Kruskal, ties to
    the lower indices) links every map that some chain of verified pairs links to map 0 (the merging
@@ -133,6 +135,19 @@ def relative(al: Alignment, reverse: bool) -> Placement:
     return wrap_deg(-th), (float(d[0]), float(d[1]))
 
 
+def pair_placement(p: PairResult, names, i: int, j: int) -> Placement:
+    """(θ, t) of map j onto map i (``names``: the maps' names by index) from their pair result, whichever
+    way it was searched (the pair's reference is the map whose name comes first: :func:`merge_tree`)."""
+    return relative(p.alignment, reverse=p.ref != names[i])
+
+
+def invert(rel: Placement) -> Placement:
+    """(θ, t) of i onto j from (θ, t) of j onto i."""
+    th, t = rel
+    d = -(rotation(-th) @ np.asarray(t, np.float64))
+    return wrap_deg(-th), (float(d[0]), float(d[1]))
+
+
 def chain(p_parent: Placement, rel: Placement) -> Placement:
     """Placement onto map 0 of a map placed ``rel`` onto a map placed ``p_parent`` onto map 0."""
     th0, t0 = p_parent
@@ -140,7 +155,7 @@ def chain(p_parent: Placement, rel: Placement) -> Placement:
     return wrap_deg(th0 + rel[0]), (float(t0[0] + d[0]), float(t0[1] + d[1]))
 
 
-def compose_tree(n: int, tree: list[tuple[int, int]], pairs: dict[tuple[int, int], PairResult]):
+def compose_tree(n: int, tree: list[tuple[int, int]], pairs: dict[tuple[int, int], PairResult], names):
     """Placements onto map 0 of every map the tree links to it, in breadth-first order, and the tree edges
     used as (parent, child) pairs."""
     nbrs: dict[int, list[int]] = {k: [] for k in range(n)}
@@ -154,8 +169,9 @@ def compose_tree(n: int, tree: list[tuple[int, int]], pairs: dict[tuple[int, int
         for b in sorted(nbrs[a]):
             if b in place:
                 continue
-            al = pairs[(min(a, b), max(a, b))].alignment
-            place[b] = chain(place[a], relative(al, reverse=a > b))
+            i, j = min(a, b), max(a, b)
+            rel = pair_placement(pairs[(i, j)], names, i, j)
+            place[b] = chain(place[a], rel if a < b else invert(rel))
             links.append((a, b))
             queue.append(b)
     return place, links
@@ -167,21 +183,22 @@ def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], Pa
     out = []
     in_tree = set(tree)
     for (i, j), p in pairs.items():
-        al, ver = p.alignment, p.verification
+        ver = p.verification
         if not ver.passed or (i, j) in in_tree or i not in place or j not in place:
             continue
+        th_ij, t_ij = pair_placement(p, [m.name for m in maps], i, j)
         th_i, t_i = place[i]
         th_j, t_j = place[j]
         d = rotation(-th_i) @ (np.asarray(t_j, np.float64) - np.asarray(t_i, np.float64))
-        dth = abs(angle_diff_deg(wrap_deg(th_j - th_i), al.theta_deg))
-        dt = math.dist((float(d[0]), float(d[1])), tuple(al.translation_m))
+        dth = abs(angle_diff_deg(wrap_deg(th_j - th_i), th_ij))
+        dt = math.dist((float(d[0]), float(d[1])), t_ij)
         if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
             out.append(f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
                        f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement")
     return out
 
 
-def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]) -> dict[int, Placement]:
+def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult], names) -> dict[int, Placement]:
     """Least-squares placements over every verified pair between placed maps (a small pose graph).
 
     A tree composes each pair's small error along its path: on a ring of six robots the far end of a
@@ -190,29 +207,29 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
     Σ ν_ij (θ_j − θ_i − θ_ij)² (linearised about the tree's angles, map 0 fixed), then the translations
     Σ ν_ij |t_j − t_i − R(θ_i) t_ij|² given the angles. Without loops this is the tree's placement."""
     idx = {k: n for n, k in enumerate(k for k in place if k != 0)}
-    edges = [(i, j, p.alignment, p.verification.nu) for (i, j), p in pairs.items()
+    edges = [(i, j, pair_placement(p, names, i, j), p.verification.nu) for (i, j), p in pairs.items()
              if p.verification.passed and i in place and j in place]
     if len(edges) <= len(idx) or not idx:  # a tree: nothing to adjust
         return place
     a = np.zeros((len(edges), len(idx)))
     b = np.zeros(len(edges))
-    for r, (i, j, al, nu) in enumerate(edges):
+    for r, (i, j, (th_ij, _), nu) in enumerate(edges):
         w = math.sqrt(max(nu, 1e-6))
         for k, sign in ((j, 1.0), (i, -1.0)):
             if k in idx:
                 a[r, idx[k]] += sign * w
-        b[r] = w * angle_diff_deg(al.theta_deg, place[j][0] - place[i][0])  # wrapped residual of the tree
+        b[r] = w * angle_diff_deg(th_ij, place[j][0] - place[i][0])  # wrapped residual of the tree
     delta = np.linalg.lstsq(a, b, rcond=None)[0]
     theta = {k: place[k][0] + (delta[idx[k]] if k in idx else 0.0) for k in place}
     at = np.zeros((2 * len(edges), 2 * len(idx)))
     bt = np.zeros(2 * len(edges))
-    for r, (i, j, al, nu) in enumerate(edges):
+    for r, (i, j, (_, t_ij), nu) in enumerate(edges):
         w = math.sqrt(max(nu, 1e-6))
         for k, sign in ((j, 1.0), (i, -1.0)):
             if k in idx:
                 at[2 * r, 2 * idx[k]] += sign * w
                 at[2 * r + 1, 2 * idx[k] + 1] += sign * w
-        bt[2 * r:2 * r + 2] = w * (rotation(theta[i]) @ np.asarray(al.translation_m, np.float64))
+        bt[2 * r:2 * r + 2] = w * (rotation(theta[i]) @ np.asarray(t_ij, np.float64))
     tt = np.linalg.lstsq(at, bt, rcond=None)[0]
     return {k: (0.0, ORIGIN) if k == 0 else
             (wrap_deg(theta[k]), (float(tt[2 * idx[k]]), float(tt[2 * idx[k] + 1]))) for k in place}
@@ -225,9 +242,9 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): every pair's
     search and verification, by the versions of its two maps; after the cycle it holds only this cycle's
     pairs. The result has one hypothesis (``orders[0]``): the placed maps in tree order, its ``steps``
-    the tree edges' pair searches as (moving map, alignment) — the later map of the pair in ``maps``
-    onto the earlier one, in that map's frame — and its ``checks`` the placed pairs verified on map 0's
-    frame. ``memo`` (:mod:`merger.memo`): pair results shared with the other robots of a simulation (the
+    the tree edges' pair searches as (moving map, alignment) — every pair is searched with the map whose
+    name comes first as the reference, in that map's frame, so every robot searches it alike — and its
+    ``checks`` the placed pairs verified on map 0's frame. ``memo`` (:mod:`merger.memo`): pair results shared with the other robots of a simulation (the
     result is the same; its ``charged_ms`` is the computing time of the pairs taken from the memo)."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
@@ -238,14 +255,17 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     pairs: dict[tuple[int, int], PairResult] = {}
     live = set()
     for i, j in pairwise(maps):
-        key = _pair_key(maps[i], maps[j], params) if reuse is not None else None
+        # every robot searches a pair the same way: the map whose name comes first is the reference (so
+        # teammates' results are the same, and shared through the memo)
+        r, m = (j, i) if maps[j].name < maps[i].name else (i, j)
+        key = _pair_key(maps[r], maps[m], params) if reuse is not None else None
         hit = reuse.get(key) if key is not None else None
         if hit is None:
             if memo is None:
-                hit = pair_result(maps, i, j, params, warps)
+                hit = pair_result(maps, r, m, params, warps)
             else:
-                hit = memo.get(("tree-pair", map_key(maps[i]), map_key(maps[j]), params),
-                               lambda i=i, j=j: pair_result(maps, i, j, params, warps))
+                hit = memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
+                               lambda r=r, m=m: pair_result(maps, r, m, params, warps))
             if key is not None:
                 reuse[key] = hit
         live.add(key)
@@ -255,14 +275,15 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             del reuse[key]
     edges = {ij: p.verification.nu for ij, p in pairs.items() if p.verification.passed}
     tree = spanning_tree(len(maps), edges)
-    place, links = compose_tree(len(maps), tree, pairs)
+    names = [m.name for m in maps]
+    place, links = compose_tree(len(maps), tree, pairs, names)
     if len(place) == 1:  # no verified pair reaches map 0: report its best pair, rejected
         best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)].verification.nu, -k))
-        place[best] = relative(pairs[(0, best)].alignment, reverse=False)
+        place[best] = pair_placement(pairs[(0, best)], names, 0, best)
         links = [(0, best)]
     inconsistent = inconsistencies(place, pairs, tree, maps)
     if not inconsistent:
-        place = adjust(place, pairs)
+        place = adjust(place, pairs, names)
     order = list(place)  # breadth-first: map 0 first
     sub = [maps[k] for k in order]
     sub_place = {s: place[k] for s, k in enumerate(order)}
@@ -279,7 +300,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if any(not pairs[ij].verification.passed for ij in linked):  # the fallback pair of an unlinked map 0
         failed += [pairs[ij].verification.reason for ij in linked if not pairs[ij].verification.passed]
     failed += inconsistent
-    steps = tuple((maps[max(a, b)].name, pairs[(min(a, b), max(a, b))].alignment) for a, b in links)
+    steps = tuple((p.moving, p.alignment) for p in (pairs[(min(a, b), max(a, b))] for a, b in links))
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window

@@ -169,14 +169,15 @@ def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
              (0, 3): pair(0, 3, 270.0, 0.6)}
     tree = spanning_tree(4, {k: v.verification.nu for k, v in pairs.items()})
     assert (0, 3) not in tree
-    place, _ = compose_tree(4, tree, pairs)
+    names = [str(k) for k in range(4)]
+    place, _ = compose_tree(4, tree, pairs, names)
     assert abs(angle_diff_deg(place[3][0], 270.0) - 1.5) < 1e-9
-    adjusted = adjust(place, pairs)
+    adjusted = adjust(place, pairs, names)
     assert abs(angle_diff_deg(adjusted[3][0], 270.0)) < 0.6
     assert all(abs(angle_diff_deg(adjusted[k][0], 90.0 * k)) < 0.6 for k in range(4))
     assert adjusted[0] == (0.0, (0.0, 0.0))
     chain_only = {k: v for k, v in pairs.items() if k != (0, 3)}
-    assert adjust(place, chain_only) == place
+    assert adjust(place, chain_only, names) == place
 
 
 def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):

@@ -30,9 +30,15 @@ when a *true upper bound* of its score shows it cannot win; every other angle is
    then none can beat the best one in the reference's order (higher score, then the first angle), and
    the best evaluated angle is the reference's coarse angle — ties and plateaus included, identical maps
    too (the order of evaluation never decides, only scores and indices do). The first exact batch
-   carries the refinement angles of its angle (usually the answer: no second pass).
+   carries the refinement angles of its angle (usually the answer: no second pass) — all 21 of them up
+   to ROI side FINE_EXACT_MAX; on larger ROIs (ω̃) those whose per-angle bound is within FINE_GAP of
+   the best one, the bounds computed with the coarse angles' (a guess of which angles step 3 needs).
 3. **The refinement, exactly**: the 21 angles ``coarse ± 1°`` at 0.1° (the same floats as the
-   reference's), all evaluated; the first maximum is θ; its score and counts equal ``problem.evaluate(θ)``.
+   reference's). Its answer is their first maximum: the best-first argument of step 2 over the 21
+   angles (:class:`_FineValues`: per-angle bounds, exact where evaluated) decides it, evaluating exactly
+   only the angles whose bound reaches the best exact score (all of them for the measures without a
+   per-angle bound); θ's score and counts equal ``problem.evaluate(θ)``. The other refinement scores
+   (``Alignment.fine``) are computed, exactly, when first read.
 4. **The runner-up** (best coarse angle ≥ 10° from θ, first maximum) by the same best-first loop over
    the far zone: exact. It is computed when first read (deferred, :class:`merger.search.Alignment`); a
    far zone of noise-level scores needs most of its angles' per-angle bounds, so it costs several
@@ -121,10 +127,13 @@ from .search import (
 )
 from .sparse import SparseEvaluator, lattice_coords
 
-POOL_DIV = 3.0  # blocks of the moving map ≈ a sector / POOL_DIV
-FIRST_BATCH = 12  # best sector bounds given the per-angle bound before the first exact evaluation
+POOL_DIV = 4.0  # blocks of the moving map ≈ a sector / POOL_DIV
+FIRST_BATCH = 20  # best sector bounds given the per-angle bound before the first exact evaluation
 EXACT_BATCH = 4  # exact evaluations per batch after the first (best bounds first); batches then double
 MAX_BATCH = 48
+FINE_EXTRA = 21  # at most this many refinement angles evaluated with the first coarse angle (ω̃) ...
+FINE_GAP = 0.06  # ... those whose per-angle bound is within this of the best one
+FINE_EXACT_MAX = 480  # up to this ROI side all 21 refinement angles ride with the first (one cheap batch)
 TIGHTEN_BATCH = 32  # angles given the evaluator's per-angle bound at a time (ω̃)
 _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
 _DELTA_RAD = 1e-9
@@ -141,9 +150,11 @@ def clear_cache() -> None:
 
 def sector_grain(n: int) -> float:
     """Sector size (band width, and arc of a bin at the band's outer edge) in ROI cells for an (n, n) ROI:
-    coarser sectors cost less (∝ (n / grain)²) and bound less tightly; 2 cells at 128, 4 at 256, 7 from
-    448 on (measured best on generated rooms)."""
-    return min(max(2.0, n / 64.0), 7.0)
+    coarser sectors cost less (∝ (n / grain)²) and bound less tightly, so that more angles need their
+    per-angle bound (a few µs each); 3.2 cells at 128, 6.4 at 256, 10 from 400 on (measured best on
+    generated rooms: the sector stage costs 0.55, 0.75 and 1.9 ms at ROI 128, 256 and 800, and leaves
+    15–40 angles above the answer's score)."""
+    return min(max(2.0, n / 64.0), 7.0) if n <= FINE_EXACT_MAX else 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,6 +180,7 @@ class SectorLayout:
     cx: np.ndarray
     cy: np.ndarray
     n_all_spec: np.ndarray
+    rows_identity: bool = False
 
 
 @lru_cache(maxsize=16)
@@ -201,7 +213,7 @@ def sector_layout(n: int, res: float, grain: float) -> SectorLayout:
     bn = np.minimum((ph * bins[bd]).astype(np.int64), lengths[bd] - 1)
     lat = (roff[bd] + bn % bins[bd]) * 360 + bn // bins[bd]
     lay = SectorLayout(n, res, wb, bins, noff, roff, total, rows, lat.astype(np.intp), to_rows, cx, cy,
-                       np.empty(0))
+                       np.empty(0), bool((to_rows == np.arange(total)).all()))
     object.__setattr__(lay, "n_all_spec", _row_spectra(lay, _hist(lay, None)))
     return lay
 
@@ -302,7 +314,7 @@ class SectorBounds:
         the touching and path arguments (module documentation) hold for blocks unchanged."""
         lay = self.lay
         mov, mres = problem.moving, problem.moving.resolution
-        q = max(1, int(lay.wb / mres / POOL_DIV))
+        q = max(1, int(lay.wb / mres / (POOL_DIV if problem.n > FINE_EXACT_MAX else 3.0)))
         cmx, cmy = problem.center_moving
         half = problem.n * lay.res / 2.0
         # only cells that meet the moving ROI's square matter (outside it a lookup is unknown): the crop is
@@ -341,33 +353,49 @@ class SectorBounds:
         np.clip(cr, 0, size - 1, out=cr)
         center = (cr // q) * ps + cc // q
 
-        def touched(blocks):
-            return self._raster(np.flatnonzero(blocks), ps, xs, ys, bs)
+        def boundary(cls):  # the blocks of cls's complement with an 8-neighbour in cls
+            return dil(cls) & ~cls
 
-        def sure(cls):
-            return cls.reshape(-1).take(center) & ~touched(dil(cls) & ~cls)
-
-        out = {"may_occ": touched((pmax == OCCUPIED_S) & ~outside)}
+        # every touched set in one raster: [class name, blocks] in order
+        sets = [("may_occ", (pmax == OCCUPIED_S) & ~outside)]
+        sure = []  # (name, class): sure_x = class at the sector's center and no boundary block touches it
         oin = (pmin == OCCUPIED_S) & inside
         if self.measure != "similarity" and oin.any():  # ω̃'s bound gains next to nothing from it
-            out["sure_occ"] = sure(oin)
+            sure.append(("sure_occ", oin))
         if self.measure != "ncc":
-            out["sure_free"] = sure((pmin == FREE_S) & (pmax == FREE_S) & inside)
+            sure.append(("sure_free", (pmin == FREE_S) & (pmax == FREE_S) & inside))
+        sets += [(name, boundary(cls)) for name, cls in sure]
+        fany = None
         if self.measure == "birk_carpin":
             fany = (_pool(crop == FREE_S, q, np.maximum) if q > 1 else crop == FREE_S) & ~outside
-            out["may_free"] = fany.reshape(-1).take(center) | touched(fany & dil(~fany))
+            sets.append(("may_free", fany & dil(~fany)))
+        touched = dict(zip([name for name, _ in sets], self._raster([b for _, b in sets], ps, xs, ys, bs),
+                           strict=True))
+        out = {"may_occ": touched["may_occ"]}
+        for name, cls in sure:
+            out[name] = cls.reshape(-1).take(center) & ~touched[name]
+        if fany is not None:
+            out["may_free"] = fany.reshape(-1).take(center) | touched["may_free"]
         names = list(out)
-        rows = np.stack([out[k].take(lay.to_rows).reshape(lay.rows, 360) for k in names]).astype(np.float64)
+        rows = np.stack([out[k] for k in names]).astype(np.float64)
+        if not lay.rows_identity:
+            rows = rows[:, lay.to_rows]
+        rows = rows.reshape(len(names), lay.rows, 360)
         spectra = _row_spectra(lay, rows)
         _MOVING_CACHE.put(key, (crop, tuple(names), spectra))
         return dict(zip(names, spectra, strict=True))
 
-    def _raster(self, cells: np.ndarray, size: int, xs, ys, mres) -> np.ndarray:
-        """Natural-layout mask of the sectors touched by the given crop cells (flat indices)."""
+    def _raster(self, sets: list[np.ndarray], size: int, xs, ys, mres) -> list[np.ndarray]:
+        """Natural-layout masks of the sectors touched by each given set of crop blocks (boolean arrays
+        over the crop's blocks), in one pass."""
         lay = self.lay
-        hit = np.zeros(lay.total + 1, np.int64)
+        total = lay.total + 1
+        cells_of = [np.flatnonzero(b) for b in sets]
+        k = len(sets)
+        cells = np.concatenate(cells_of)
         if cells.size == 0:
-            return hit[:-1] > 0
+            return [np.zeros(lay.total, bool) for _ in sets]
+        owner = np.repeat(np.arange(k) * total, [c.size for c in cells_of])
         r, c = np.divmod(cells, size)
         rmin, rmax, lo, hi = _polar_boxes(xs[c], ys[r], mres)
         dr = _DELTA_CELL * mres
@@ -379,7 +407,8 @@ class SectorBounds:
         with np.errstate(divide="ignore"):
             margin = _DELTA_RAD + np.where(full, 0.0, dr / np.maximum(rmin, 1e-300))
         lo_deg, hi_deg = np.degrees(lo - margin), np.degrees(hi + margin)
-        i0, i1, lo_deg, hi_deg, full = i0[keep], i1[keep], lo_deg[keep], hi_deg[keep], full[keep]
+        i0, i1, lo_deg, hi_deg, full, owner = (i0[keep], i1[keep], lo_deg[keep], hi_deg[keep], full[keep],
+                                               owner[keep])
         cnt = i1 - i0 + 1
         cell = np.repeat(np.arange(cnt.size), cnt)
         band = i0[cell] + np.arange(cell.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
@@ -390,19 +419,18 @@ class SectorBounds:
         whole = full[cell] | (j1 - j0 + 1 >= length)
         span = np.where(whole, length - 1, np.maximum(j1 - j0, 0))
         j0 = np.where(whole, 0, np.mod(j0, length))
-        base = lay.noff[band]
+        base = lay.noff[band] + owner[cell]
         end = j0 + span  # inclusive, may pass the band's end: split
-        first_end = np.minimum(end, length - 1)
         starts = [base + j0]
-        stops = [base + first_end + 1]
+        stops = [base + np.minimum(end, length - 1) + 1]
         wrap = end >= length
         if wrap.any():
             starts.append(base[wrap])
             stops.append(base[wrap] + end[wrap] - length[wrap] + 1)
-        st, sp = np.concatenate(starts), np.concatenate(stops)
-        hit += np.bincount(st, minlength=lay.total + 1)[:lay.total + 1]
-        hit -= np.bincount(sp, minlength=lay.total + 1)[:lay.total + 1]
-        return np.cumsum(hit[:-1]) > 0
+        hit = np.bincount(np.concatenate(starts), minlength=k * total)
+        hit -= np.bincount(np.concatenate(stops), minlength=k * total)
+        hit = np.cumsum(hit.reshape(k, total), axis=1)[:, :-1] > 0
+        return list(hit)
 
 
 def _ncc_upper(a: np.ndarray, y_lo: np.ndarray, y_hi: np.ndarray, size: int, sx: int) -> np.ndarray:
@@ -467,8 +495,13 @@ class _Coarse:
             self.bounds[list(got)] = list(got.values())
             self.tightened[list(got)] = True
 
-    def tighten(self, idx) -> None:
+    def tighten(self, idx, extra=(), first_part=()) -> None:
+        """Per-angle bounds at the coarse angles ``idx`` (and, in the same batches, at the angles
+        ``extra``, and the first exact part at ``first_part``: the evaluator keeps them for later)."""
         todo = [int(i) for i in idx if not self.tightened[i]]
+        extra = [float(a) for a in extra]
+        if todo or extra:
+            self.ev.prepare((), [float(i) for i in todo] + extra, [float(a) for a in first_part])
         if todo:
             ub = self.ev.upper_bounds([float(i) for i in todo])
             self.bounds[todo] = np.minimum(self.bounds[todo], ub)
@@ -477,8 +510,9 @@ class _Coarse:
     def best(self, allowed: np.ndarray | None = None, with_fine: bool = False) -> int | None:
         """The first maximum of the exact coarse profile over ``allowed`` (a mask over 0..359): evaluates
         angles in decreasing order of bound until no other angle can beat the best one evaluated.
-        ``with_fine``: the first angle evaluated comes with its refinement angles, in the same batch (it
-        is usually the answer: the refinement then costs no second pass)."""
+        ``with_fine``: the first angle evaluated is usually the answer, so its refinement angles ride in
+        its batches — their per-angle bounds (ω̃), and the exact scores of the FINE_EXTRA best bounded
+        (ω̃) or of all of them (the other measures, which have no per-angle bound)."""
         idx = np.arange(360)
         mask = np.ones(360, bool) if allowed is None else allowed.copy()
         if not mask.any():
@@ -497,12 +531,30 @@ class _Coarse:
                 return best
             cand = cand[np.lexsort((cand, -self.bounds[cand]))]  # best bound first, then smallest angle
             if best is None:  # a first exact value: the best bound of the first few, once tightened
+                extra = []
                 if self.can_tighten:
-                    self.tighten(cand[:FIRST_BATCH])
-                    top = cand[:FIRST_BATCH]
+                    top = cand[:FIRST_BATCH if self.ev.n <= FINE_EXACT_MAX else 32]
+                    # the answer's refinement angles ride along: those of the two best sector bounds
+                    # (the best tightened bound is nearly always one of them)
+                    if with_fine and self.ev.n > FINE_EXACT_MAX:  # their bounds: the refinement's certificate
+                        self.tighten(top, [a for c in top[:2] for a in fine_angles(float(c))])
+                    else:
+                        self.tighten(top)
                     cand = top[np.lexsort((top, -self.bounds[top]))]
                 first = int(cand[0])
-                self.evaluate([first], fine_angles(float(first)) if with_fine else ())
+                if with_fine:
+                    fine = [float(a) for a in fine_angles(float(first))]
+                    if self.can_tighten and self.ev.n > FINE_EXACT_MAX:
+                        self.tighten((), fine)  # nothing to do when the guess was right
+                        ub = self.ev.upper_bounds(fine)
+                        # exact with the first angle: the refinement angles whose bound is near the best
+                        # (a guess of which ones the refinement needs; the refinement checks it exactly)
+                        order = np.lexsort((np.arange(len(fine)), -ub))
+                        near = order[ub[order] >= ub[order[0]] - FINE_GAP][:FINE_EXTRA]
+                        extra = [fine[i] for i in near]
+                    else:
+                        extra = fine
+                self.evaluate([first], extra)
                 continue
             if self.can_tighten and not self.tightened[cand[:TIGHTEN_BATCH]].all():
                 self.tighten(cand[:TIGHTEN_BATCH])  # the best bounds first; the order may change
@@ -540,20 +592,96 @@ def fast_search(problem: RotationProblem) -> Alignment:
     ev, coarse = _prepare(problem)
     best = coarse.best(with_fine=True)
     fine = [float(a) for a in fine_angles(float(best))]
-    values = ev.scores(fine)
-    k = int(np.argmax(values))  # the first maximum, as the reference's strict '>' scan
+    lock = threading.Lock()  # the deferred evidence shares the evaluator, which is not thread-safe
+    values = _FineValues(ev, fine, lock)
+    k = values.first_max()  # the first maximum, as the reference's strict '>' scan
     theta = wrap_deg(fine[k])
+    score = values.exact[k]
     profile = coarse.bounds.copy()
     for i, v in coarse.values.items():
         profile[i] = v
-    lock = threading.Lock()
 
     def runner_up():
         with lock:
             return _runner_up(coarse, theta)
 
-    return Alignment(theta, float(values[k]), lambda: ev.similarity(fine[k]).counts, problem.measure, "fast",
-                     problem.roi_m, profile, runner_up, fine=(np.asarray(fine), np.asarray(values, np.float64)))
+    def counts():
+        with lock:
+            return ev.similarity(fine[k]).counts
+
+    return Alignment(theta, score, counts, problem.measure, "fast", problem.roi_m, profile, runner_up,
+                     fine=values)
+
+
+class _FineValues:
+    """The refinement's ``(angles, scores)`` pair of an :class:`Alignment` (``fine``), exact.
+
+    :meth:`first_max` finds the reference's fine answer — the first maximum of the 21 exact scores —
+    evaluating exactly only the angles that can be it: best per-angle upper bound first
+    (:meth:`SparseEvaluator.upper_bounds`, exact where known), until every unevaluated angle j has
+    ``bound(j) < best`` or ``bound(j) == best and j > best index`` (the argument of the coarse loop).
+    The scores of the other angles are computed when ``fine`` is first read (indexing, unpacking or
+    pickling: a pickled copy is a plain tuple)."""
+
+    def __init__(self, ev: SparseEvaluator, angles: list[float], lock) -> None:
+        self.ev, self.lock = ev, lock
+        self.angles = np.asarray(angles, np.float64)
+        self._list = [float(a) for a in angles]
+        self.exact = np.full(len(angles), -np.inf)
+        self.done = np.zeros(len(angles), bool)
+        self._resolved = None
+
+    def _evaluate(self, idx) -> None:
+        idx = [int(i) for i in idx if not self.done[i]]
+        if idx:
+            self.exact[idx] = self.ev.scores([self._list[i] for i in idx])
+            self.done[idx] = True
+
+    def first_max(self) -> int:
+        ev, n = self.ev, len(self._list)
+        known = ev.known(self._list)
+        if known.all():  # the usual case for small ROIs: all of them came with the first coarse angle
+            self.exact[:] = ev.scores(self._list)
+            self.done[:] = True
+            return int(np.argmax(self.exact))
+        self._evaluate(np.flatnonzero(known))
+        ub = np.full(n, np.inf)
+        rest = np.flatnonzero(~self.done)
+        if rest.size:
+            ub[rest] = ev.upper_bounds([self._list[i] for i in rest])
+        pos = np.arange(n)
+        while True:
+            if self.done.any():
+                bk = int(np.argmax(np.where(self.done, self.exact, -np.inf)))  # first maximum
+                bv = self.exact[bk]
+                open_ = ~self.done & ((ub > bv) | ((ub == bv) & (pos < bk)))
+            else:
+                open_ = ~self.done
+            cand = np.flatnonzero(open_)
+            if cand.size == 0:
+                return bk
+            self._evaluate(cand)  # all of them in one batch (a batch costs more than an angle)
+
+    def _values(self) -> np.ndarray:
+        if self._resolved is None:
+            with self.lock:
+                self._evaluate(np.flatnonzero(~self.done))
+                self._resolved = self.exact.copy()
+        return self._resolved
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, i):
+        if isinstance(i, int) and i in (0, -2):
+            return self.angles
+        return (self.angles, self._values())[i]
+
+    def __iter__(self):
+        return iter((self.angles, self._values()))
+
+    def __reduce__(self):
+        return (tuple, ((self.angles, self._values()),))
 
 
 def _runner_up(coarse: _Coarse, theta: float) -> tuple[float, float]:

@@ -9,7 +9,10 @@ thesis's measures (3.3.1) only involve few cells:
 * the other half of dis (moving occupied, reference free): the reference-free lattice points whose
   lookup falls in an *occupied moving cell*. Rotation preserves distances, so every such point lies
   within ``√2/2`` cell of that cell's centre mapped forward (x_ref = c_ref + R(θ)(x_mov − c_mov)); the
-  lattice points that close to an occupied cell at one of the angles are looked up like the others;
+  lattice points that close to an occupied cell at one of the angles are looked up like the others
+  (small ROIs: one candidate set per cluster of nearby angles), or, on large ROIs where a wall sweeps
+  many lattice points over 1°, each cell's nb × nb candidates are tested against that cell alone
+  (:meth:`SparseEvaluator._moving_occupied_cells`: no candidate set, no de-duplication);
 * free/free (Birk–Carpin's agr, and the ``free_agree`` count every result carries): the reference ROI's
   free lattice points;
 * NCC's Σy: every lattice point whose lookup is occupied (the same candidates, not only free ones).
@@ -36,9 +39,12 @@ from .similarity import Counts, Similarity, count_cells, index_from_counts
 
 _TOL_CELL = 1e-8  # certified floor: margin to a cell border, in cells
 _TOL_M = 1e-9  # certified square mask: margin to the ROI border, in metres
-_STRADDLE = np.uint8(4)  # crop code flag: the cell straddles the moving ROI's square border
-_CLUSTER_GAP_DEG = 1.5  # angles further apart get their own candidate set
+_CLUSTER_GAP_DEG = 1.5  # angles further apart get their own candidate set (_moving_occupied_union)
 _SMALL_CLUSTER = 4  # clusters of at most this many angles share one candidate set
+UNION_MAX_CELLS = 480  # ROI side up to which the moving-occupied counts use shared candidate sets
+_ANGLE_CHUNK = 32  # angles per batch of lookups (larger (angles, points) arrays fall out of the caches)
+_NEAR32 = 1e-5  # float32 positions closer than this (cells) to a cell border are recomputed in float64
+_STRADDLE = np.uint8(4)  # crop code flag: the cell straddles the moving ROI's square border
 
 
 def lattice_coords(n: int, resolution: float) -> np.ndarray:
@@ -132,9 +138,12 @@ class SparseEvaluator:
         self.sx = float(self.occ_h.shape[1])
         self.cm = np.asarray(problem.center_moving, np.float64)
         self._crop(problem.moving)
-        self._memo: dict[float, list] = {}  # angle -> counts row (-1: not computed)
-        self._done: dict[str, set] = {p: set() for p in self._PARTS}  # angles whose part is computed
+        self._index: dict[float, int] = {}  # angle -> row of _rows
+        self._angles: list[float] = []
+        self._rows = np.full((64, 6), -1, np.int64)
         self._full: dict[float, np.ndarray] = {}
+        self._padded = None  # the reference ROI's classes on a padded lattice (see _lattice_masks)
+        self._free_pad1 = None  # the reference-free lattice points, padded by one (see _disagree_lower)
 
     def _homogeneous(self, lattice_flat: np.ndarray) -> np.ndarray:
         """(3, m) columns (kx, ky, 1) of lattice points given by flat index ``i * n + j``."""
@@ -187,6 +196,11 @@ class SparseEvaluator:
         self.q_rel = q_h[:2]  # (2, Q): cell centres relative to the moving center, metres
         self.scale = self.res / mres  # one lattice step, in moving cells
         self.rad = math.sqrt(0.5) / self.scale + 1e-6  # preimage radius of a cell, in lattice steps
+        self._nb = int(math.floor(2 * self.rad)) + 1  # lattice points per axis within rad of a point
+        self._pad = self._nb + 1
+        self.qcol, self.qrow = qc.astype(np.float64), qr.astype(np.float64)  # occupied cells, crop indices
+        self._q_inner = q_h[:, ~self.q_strad]  # those surely inside the square
+        self._q_strad_any = bool(self.q_strad.any())
 
     # --- certified lookups ----------------------------------------------------------------------------
     def _states(self, pts_h: np.ndarray, rots: np.ndarray, bad: np.ndarray) -> np.ndarray:
@@ -219,6 +233,18 @@ class SparseEvaluator:
         a = np.abs(d)
         return (a >= self.half).any(axis=1), (np.abs(a - self.half) < _TOL_M).any(axis=1)
 
+    def _lattice_masks(self):
+        """The reference-free lattice points, and the not-occupied ones, on the lattice padded by ``pad``
+        points on every side (padding: neither)."""
+        if self._padded is None:
+            n, pad = self.n, self._pad
+            free = np.zeros((n + 2 * pad, n + 2 * pad), bool)
+            free[pad:pad + n, pad:pad + n] = self.ref_roi == FREE_S
+            nocc = np.zeros_like(free)
+            nocc[pad:pad + n, pad:pad + n] = self.ref_roi != OCCUPIED_S
+            self._padded = (free.reshape(-1), nocc.reshape(-1))
+        return self._padded
+
     def _near_walls(self, angles, keep: np.ndarray) -> np.ndarray:
         """Lattice points (flat, within ``keep``) whose lookup can land in an occupied moving cell at one
         of ``angles``: the lattice points within ``rad`` of a cell centre mapped forward (x_ref =
@@ -246,9 +272,8 @@ class SparseEvaluator:
                     mask[dy:, dx:] |= first[:w - dy, :w - dx]
         return np.flatnonzero(mask[nb:nb + n, nb:nb + n] & keep.reshape(n, n))
 
-    def _moving_occupied(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
-        """Lattice points whose lookup is an occupied moving cell: ``out[:, 0]`` += those where the
-        reference is free (disagree), ``out[:, 1]`` += those where it is not occupied (if ``need_sy``).
+    def _moving_occupied_union(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
+        """:meth:`_moving_occupied` by candidate sets shared by nearby angles (small ROIs).
 
         The angles are grouped in clusters (gaps ≤ 1.5°): a cluster of many angles gets its own candidate
         set (:meth:`_near_walls`), the small ones share one. Candidates are looked up exactly like the
@@ -275,73 +300,183 @@ class SparseEvaluator:
                 occ &= self.ref_free_flat.take(pts)
             out[grp, 0] += np.count_nonzero(occ, axis=1)
 
-    # --- counts, per angle and per part ---------------------------------------------------------------
-    # row: agree, disagree where the reference is occupied (a), disagree where the moving map is occupied
-    # (b), free/free (c), moving-occupied cells where the reference is not occupied (b, NCC only), a lower
-    # bound of (b) (l); −1 = not computed yet. An angle that fell back to the reference path holds its
-    # complete row.
-    _PARTS = {"a": (0, 1), "b": (2,), "c": (3,), "l": (5,)}
+    def _moving_occupied(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
+        """Lattice points whose lookup is an occupied moving cell: ``out[:, 0]`` += those where the
+        reference is free (disagree), ``out[:, 1]`` += those where it is not occupied (if ``need_sy``).
+        Two exact ways, the cheaper one by ROI size: candidate sets shared by nearby angles
+        (:meth:`_moving_occupied_union`: ROIs up to UNION_MAX_CELLS, where a wall sweeps few lattice
+        points over 2°) or cell by cell (:meth:`_moving_occupied_cells`)."""
+        if self.n <= UNION_MAX_CELLS:
+            self._moving_occupied_union(thetas, rots, bad, out, need_sy=need_sy)
+        else:
+            self._moving_occupied_cells(thetas, rots, bad, out, need_sy=need_sy)
 
-    def _ensure(self, thetas, parts: str) -> None:
-        """Compute the missing ``parts`` of the rows of ``thetas``, each part in one batch."""
+    def _moving_occupied_cells(self, thetas, rots, bad, out, *, need_sy: bool) -> None:
+        """Lattice points whose lookup is an occupied moving cell: ``out[:, 0]`` += those where the
+        reference is free (disagree), ``out[:, 1]`` += those where it is not occupied (if ``need_sy``).
+
+        Cell by cell: a lattice point whose lookup lies in the occupied cell C lies within ``rad`` of C's
+        centre mapped forward (x_ref = c_ref + R(θ)(x_mov − c_mov); rotations keep distances), so among
+        the nb × nb lattice points from ``ceil(m − rad)`` per axis. Each candidate is counted when its
+        lookup lies in C, i.e. when its position v = u − (C + ½) relative to C's centre, in moving cells,
+        has |v_x|, |v_y| < ½: every lattice point's lookup lies in one cell, so it is counted once, with
+        no de-duplication. v is computed in float32 (error < 1e-6 cell for the candidates near C); where
+        max(|v_x|, |v_y|) is within 1e-5 of ½ it is recomputed in float64 (error far below 1e-8 cell) and
+        certified like :meth:`_states` (closer than 1e-8: the angle takes the reference code path).
+        Lookups in cells straddling the square's border are tested against the square like
+        :meth:`_states`.
+        """
+        q = self.q_h.shape[1]
+        if not q:
+            return
+        n, pad, nb = self.n, self._pad, self._nb
+        wp = n + 2 * pad
+        free_p, nocc_p = self._lattice_masks()
+        dx, dy = np.meshgrid(np.arange(nb, dtype=np.float64), np.arange(nb, dtype=np.float64))
+        dx, dy = dx.reshape(-1), dy.reshape(-1)
+        offs = (dy * wp + dx).astype(np.intp)  # (O,)
+        c = (n - 1) / 2.0
+        chunk = max(1, int(2_000_000 // (dx.size * q)))
+        for s0 in range(0, len(thetas), chunk):
+            sl = slice(s0, s0 + chunk)
+            rot = rots[sl]  # R(−θ): d = rot @ k
+            nt = rot.shape[0]
+            fr = _rotations(np.asarray(thetas[sl], np.float64)) / self.res  # forward, lattice steps
+            g = np.empty((2 * nt, 3))
+            g[:nt, :2], g[nt:, :2] = fr[:, 0, :], fr[:, 1, :]
+            g[:, 2] = c - self.rad
+            lo = np.ceil(g @ self.q_h)  # (2T, Q): the first candidate per axis (lattice index)
+            np.clip(lo, -pad, n, out=lo)  # a candidate block wholly outside the lattice stays outside
+            lx, ly = lo[:nt], lo[nt:]
+            # v = u − (C + ½) in moving cells, u = (c_m + R(−θ)k − origin)/res_m: linear in the lattice index
+            a = rot * (self.res / self.mres)  # (T, 2, 2): moving cells per lattice step
+            cx = (self.base[0] - 0.5 - (a[:, 0, 0] + a[:, 0, 1]) * c)[:, None] - self.qcol
+            cy = (self.base[1] - 0.5 - (a[:, 1, 0] + a[:, 1, 1]) * c)[:, None] - self.qrow
+            ux = a[:, 0, 0, None] * lx + a[:, 0, 1, None] * ly + cx  # (T, Q), float64
+            uy = a[:, 1, 0, None] * lx + a[:, 1, 1, None] * ly + cy
+            sx = a[:, 0, 0, None] * dx + a[:, 0, 1, None] * dy  # (T, O): a candidate's offset
+            sy = a[:, 1, 0, None] * dx + a[:, 1, 1, None] * dy
+            vx = ux.astype(np.float32)[:, None, :] + sx.astype(np.float32)[:, :, None]  # (T, O, Q)
+            vy = uy.astype(np.float32)[:, None, :] + sy.astype(np.float32)[:, :, None]
+            np.abs(vx, out=vx)
+            np.abs(vy, out=vy)
+            m = np.maximum(vx, vy, out=vx)
+            m -= np.float32(0.5)  # < 0: the lookup lies in C
+            hit = m < 0
+            base = ((ly + pad) * wp + lx + pad).astype(np.intp)  # (T, Q) padded flat index
+            idx = base[:, None, :] + offs[None, :, None]
+            nocc = nocc_p.take(idx)
+            np.abs(m, out=m)
+            if m.min() < _NEAR32:  # near C's border in float32: decide in float64
+                near = np.flatnonzero(m < _NEAR32)
+                near = near[nocc.reshape(-1).take(near)]
+                t_i, o_i, q_i = np.unravel_index(near, m.shape)
+                if t_i.size:
+                    wx = np.abs(ux[t_i, q_i] + sx[t_i, o_i])
+                    wy = np.abs(uy[t_i, q_i] + sy[t_i, o_i])
+                    m64 = np.maximum(wx, wy) - 0.5
+                    hit[t_i, o_i, q_i] = m64 < 0
+                    bad[s0 + t_i[np.abs(m64) < _TOL_CELL]] = True
+            hs = hit & nocc
+            if self._q_strad_any:  # lookups in cells straddling the square's border: inside the square?
+                sh = hs & self.q_strad[None, None, :]
+                if sh.any():
+                    t_i, o_i, q_i = np.nonzero(sh)
+                    kx = (lx[t_i, q_i] + dx[o_i] - c) * self.res
+                    ky = (ly[t_i, q_i] + dy[o_i] - c) * self.res
+                    d = np.stack([rot[t_i, 0, 0] * kx + rot[t_i, 0, 1] * ky,
+                                  rot[t_i, 1, 0] * kx + rot[t_i, 1, 1] * ky], axis=1)
+                    outside, amb2 = self._outside(d)
+                    hs[t_i[outside], o_i[outside], q_i[outside]] = False
+                    bad[s0 + t_i[amb2]] = True
+            if need_sy:
+                out[sl, 1] += np.count_nonzero(hs.reshape(nt, -1), axis=1)
+            hs &= free_p.take(idx)
+            out[sl, 0] += np.count_nonzero(hs.reshape(nt, -1), axis=1)
+
+    # --- counts, per angle and per part ---------------------------------------------------------------
+    # row (one per angle, ``_rows[_index[θ]]``): agree, disagree where the reference is occupied (a),
+    # disagree where the moving map is occupied (b), free/free (c), moving-occupied cells where the
+    # reference is not occupied (b, NCC only), a lower bound of (b) (l); −1 = not computed yet. An angle
+    # that fell back to the reference path holds its complete row.
+    _PARTS = {"a": (0, 1), "b": (2, 4), "c": (3,), "l": (5,)}
+
+    def _ids(self, thetas) -> np.ndarray:
+        """Row indices of ``thetas`` (floats), new rows for new angles."""
+        index, out = self._index, []
+        for t in thetas:
+            i = index.get(t)
+            if i is None:
+                i = index[t] = len(self._angles)
+                self._angles.append(t)
+            out.append(i)
+        if len(self._angles) > self._rows.shape[0]:
+            grown = np.full((2 * len(self._angles), 6), -1, np.int64)
+            grown[:self._rows.shape[0]] = self._rows
+            self._rows = grown
+        return np.asarray(out, np.intp)
+
+    def _ensure(self, thetas, parts: str) -> np.ndarray:
+        """Compute the missing ``parts`` of the rows of ``thetas`` (floats), each part in one batch; returns
+        their row indices."""
+        ids = self._ids(thetas)
+        uniq = ids if len(set(thetas)) == len(thetas) else np.unique(ids)
         for part in parts:
-            done = self._done[part]
-            todo = [t for t in dict.fromkeys(thetas) if t not in done]
-            if not todo:
+            col = self._PARTS[part][0]
+            todo_ids = uniq[self._rows[uniq, col] < 0]
+            if not todo_ids.size:
                 continue
-            for t in todo:
-                if t not in self._memo:
-                    self._memo[t] = [-1] * 6
+            todo = [self._angles[i] for i in todo_ids.tolist()]
             rots = _rotations([-t for t in todo])  # d = R(−θ) @ (kx, ky), as rotated_roi
             bad = np.zeros(len(todo), bool)
             vals = np.zeros((len(todo), 2), np.int64)
             if part == "a" and self.occ_h.shape[1]:
-                st = self._states(self.occ_h, rots, bad)
-                vals[:, 0] = np.count_nonzero(st == OCCUPIED_S, axis=1)
-                vals[:, 1] = np.count_nonzero(st == FREE_S, axis=1)
+                for s0 in range(0, len(todo), _ANGLE_CHUNK):  # chunks keep the (angles, points) arrays in cache
+                    sl = slice(s0, s0 + _ANGLE_CHUNK)
+                    b_sl = bad[sl]
+                    st = self._states(self.occ_h, rots[sl], b_sl)
+                    bad[sl] = b_sl
+                    vals[sl, 0] = np.count_nonzero(st == OCCUPIED_S, axis=1)
+                    vals[sl, 1] = np.count_nonzero(st == FREE_S, axis=1)
             elif part == "b" and self.q_h.shape[1]:
                 self._moving_occupied(todo, rots, bad, vals, need_sy=self.problem.measure == "ncc")
             elif part == "c":
                 vals[:, 0] = self._free_agree(rots, bad)
             elif part == "l" and self.q_h.shape[1]:
-                vals[:, 0] = self._disagree_lower(todo)
-            ncc = self.problem.measure == "ncc"
-            done.update(todo)
-            for t, (v0, v1), b in zip(todo, vals.tolist(), bad.tolist(), strict=True):
-                row = self._memo[t]
-                if b:
-                    row[:] = self.full_counts(t)
-                    for d in self._done.values():
-                        d.add(t)
-                elif part == "a":
-                    row[0], row[1] = v0, v1
-                elif part == "b":
-                    row[2] = v0
-                    if ncc:
-                        row[4] = v1
-                elif part == "c":
-                    row[3] = v0
-                else:
-                    row[5] = v0
+                for s0 in range(0, len(todo), _ANGLE_CHUNK):
+                    vals[s0:s0 + _ANGLE_CHUNK, 0] = self._disagree_lower(todo[s0:s0 + _ANGLE_CHUNK])
+            cols = list(self._PARTS[part])
+            self._rows[todo_ids[:, None], cols] = vals[:, :len(cols)]
+            if bad.any():  # too close to a cell border to certify: the reference code path decides
+                for i in todo_ids[bad].tolist():
+                    self._rows[i] = self.full_counts(self._angles[i])
+        return ids
 
     def _disagree_lower(self, thetas) -> np.ndarray:
         """Per angle, a lower bound of the moving-occupied/reference-free count: occupied cells whose
         centre, mapped forward, lies within the inscribed radius (less a margin) of a lattice point —
         that point is certainly their preimage (each point has one cell, so none is counted twice)."""
         n, nt = self.n, len(thetas)
+        q_in = self._q_inner
+        if not q_in.shape[1]:
+            return np.zeros(nt, np.int64)
         fr = _rotations(thetas) / self.res
         g = np.empty((2 * nt, 3))
         g[:nt, :2], g[nt:, :2] = fr[:, 0, :], fr[:, 1, :]
-        g[:, 2] = (n - 1) / 2.0
-        v = g @ self.q_h  # (2T, Q) lattice coordinates (j, then i)
+        g[:, 2] = (n - 1) / 2.0 + 1.0  # lattice coordinates (j, then i) on the lattice padded by one point
+        v = g @ q_in  # (2T, Q)
         r = np.rint(v)
         v -= r
         v *= v
         ok = v[:nt] + v[nt:] < (0.5 / self.scale - 1e-6) ** 2
-        ok &= ~self.q_strad
-        ok &= (r[:nt] >= 0) & (r[:nt] < n) & (r[nt:] >= 0) & (r[nt:] < n)
-        lat = np.where(ok, r[nt:] * n + r[:nt], 0).astype(np.intp)
-        ok &= self.ref_free_flat.take(lat)
+        np.clip(r, 0, n + 1, out=r)  # beyond the lattice: its padding (not free)
+        r[nt:] *= n + 2
+        r[nt:] += r[:nt]
+        if self._free_pad1 is None:  # the reference-free lattice points, on the lattice padded by one point
+            free_pad = np.zeros((n + 2, n + 2), bool)
+            free_pad[1:-1, 1:-1] = self.ref_free_flat.reshape(n, n)
+            self._free_pad1 = free_pad.reshape(-1)
+        ok &= self._free_pad1.take(r[nt:].astype(np.intp))
         return np.count_nonzero(ok, axis=1)
 
     def _free_agree(self, rots, bad) -> np.ndarray:
@@ -362,19 +497,37 @@ class SparseEvaluator:
         return self._full[key]
 
     # --- measure values ---------------------------------------------------------------------------------
+    def _exact_parts(self) -> str:
+        return "abc" if self.problem.measure == "birk_carpin" else "ab"
+
     def scores(self, thetas) -> np.ndarray:
         """Values of the problem's measure at ``thetas`` (floats equal to ``problem.evaluate(θ).value``)."""
-        thetas = [float(t) for t in thetas]
-        self._ensure(thetas, "abc" if self.problem.measure == "birk_carpin" else "ab")
-        return np.array([self._value(self._memo[t]) for t in thetas], np.float64)
+        ids = self._ensure([float(t) for t in thetas], self._exact_parts())
+        rows = self._rows[ids]
+        if self.problem.measure == "similarity":  # index_from_counts, vectorized (the same IEEE division)
+            agree, den = rows[:, 0], rows[:, 0] + rows[:, 1] + rows[:, 2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(den > 0, agree / np.maximum(den, 1), 0.0)
+        return np.array([self._value(r) for r in rows.tolist()], np.float64)
 
-    def prepare(self, exact=(), bounds=()) -> None:
-        """Evaluate, in as few batches as possible, the values at ``exact`` and the bounds at ``bounds``."""
+    def known(self, thetas) -> np.ndarray:
+        """Whether the values at ``thetas`` are already computed (:meth:`scores` would not evaluate)."""
+        index = self._index
+        ids = np.array([index.get(float(t), -1) for t in thetas], np.intp)
+        rows = self._rows[np.maximum(ids, 0)]
+        out = ids >= 0
+        for p in self._exact_parts():
+            out &= rows[:, self._PARTS[p][0]] >= 0
+        return out
+
+    def prepare(self, exact=(), bounds=(), first_part=()) -> None:
+        """Evaluate, in as few batches as possible, the values at ``exact`` and the bounds at ``bounds``
+        (and the part the bounds share with the values at ``first_part``)."""
         exact, bounds = [float(t) for t in exact], [float(t) for t in bounds]
-        self._ensure(exact + bounds, "a")
+        self._ensure(list(dict.fromkeys(exact + bounds + [float(t) for t in first_part])), "a")
         if self.problem.measure == "similarity":
             self._ensure(bounds, "l")
-        self._ensure(exact, "abc" if self.problem.measure == "birk_carpin" else "ab")
+        self._ensure(exact, self._exact_parts())
 
     def upper_bounds(self, thetas) -> np.ndarray:
         """Upper bounds of the values at ``thetas`` from the reference-occupied points only (cheap).
@@ -384,17 +537,13 @@ class SparseEvaluator:
         """
         if self.problem.measure != "similarity":
             return np.full(len(thetas), np.inf)
-        thetas = [float(t) for t in thetas]
-        self._ensure(thetas, "al")
-        out = []
-        for t in thetas:
-            row = self._memo[t]
-            if row[2] >= 0:
-                out.append(self._value(row))
-            else:
-                den = row[0] + row[1] + row[5]
-                out.append(row[0] / den if den else 0.0)
-        return np.array(out, np.float64)
+        ids = self._ensure([float(t) for t in thetas], "al")
+        rows = self._rows[ids]
+        exact = rows[:, 2] >= 0
+        agree = rows[:, 0]
+        den = agree + rows[:, 1] + np.where(exact, rows[:, 2], rows[:, 5])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(den > 0, agree / np.maximum(den, 1), 0.0)
 
     def _value(self, row) -> float:
         agree, disagree, measure = row[0], row[1] + row[2], self.problem.measure
@@ -406,8 +555,7 @@ class SparseEvaluator:
 
     def similarity(self, theta: float) -> Similarity:
         """The full :class:`Similarity` at θ (value and all counts), as ``problem.evaluate(θ)``."""
-        key = float(theta)
-        self._ensure([key], "abc")
-        row = self._memo[key]
+        ids = self._ensure([float(theta)], "abc")
+        row = self._rows[ids[0]].tolist()
         return Similarity(self._value(row), Counts(int(row[0]), int(row[1] + row[2]), int(row[3])),
                           self.problem.measure)

@@ -4,7 +4,8 @@ For three maps the thesis evaluates three orders (3.10): a pair (1,2), (1,3) or 
 then the third map is aligned onto the superposition of the pair. Here an *order* is a sequence of map
 indices; its first two are the first pair and every further map is aligned onto the superposition of
 all maps before it. :func:`merge_orders` gives one order per pair, so N maps give N(N−1)/2 orders (the
-thesis's three for N = 3) and nothing below assumes N = 3.
+thesis's three for N = 3) and nothing below assumes N = 3. The maps are ranked by name, so every robot
+of a team evaluates the same orders (and a simulation computes each once: :mod:`merger.memo`).
 
 Every order is expressed in the frame of map 0 (the robot that merges) and verified on the whole maps:
 ν_ij = ω̃(m*_i, m*_j) for every pair, accepted when all pass (:mod:`merger.verify`). Among accepted
@@ -207,11 +208,15 @@ class TeamMergeResult:
                 "orders": [o.to_dict() for o in self.orders]}
 
 
-def merge_orders(n: int) -> list[tuple[int, ...]]:
-    """One order per pair (a, b), a < b: the pair first, then the remaining maps by index."""
+def merge_orders(n: int, names=None) -> list[tuple[int, ...]]:
+    """One order per pair (a, b), a < b: the pair first, then the remaining maps by index. With ``names``
+    (the maps' names by index) the maps are ranked by name instead of by index: every robot then
+    evaluates the same orders (its own map is not always first), so a simulation's robots share their
+    searches (:mod:`merger.memo`); each order is still expressed in the merging robot's frame."""
     if n < 2:
         raise ValueError(f"merging needs at least two maps, got {n}")
-    return [(a, b, *[k for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
+    rank = list(range(n)) if names is None else sorted(range(n), key=lambda k: names[k])
+    return [(rank[a], rank[b], *[rank[k] for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
 
 
 def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
@@ -420,7 +425,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     t0 = time.perf_counter()
     if memo is not None:
         memo.take_charged_ms()
-    orders = merge_orders(len(maps))
+    orders = merge_orders(len(maps), [m.name for m in maps])
     warps = Warps(maps)
     aligned = [align_order(maps, o, params, reuse, warps, memo) for o in orders]
     if reuse is not None:  # keep only this cycle's pairs

@@ -272,7 +272,7 @@ def test_merge_events_plots_and_throttled_merged_maps(fabricated):
         ends = [record._from_frame(sim.centers_given[m], sim.start_poses[m]) for m in mates]
         np.testing.assert_allclose([np.array(st)[1, :2] for st in strips], ends, atol=1e-5)
         ms = series(rec, f"/plots/{n}/cycle_ms")[f"{n} merge cycle (ms)"]
-        assert [v for _, v in ms] == pytest.approx([c.result.wall_ms for c in cycles if c.robot == n])
+        assert [v for _, v in ms] == pytest.approx([c.result.cost_ms for c in cycles if c.robot == n])
     rejected = [x for x in texts(rec, "/events/Lyon") if x.startswith("rejected merge")]
     assert len(rejected) == 1 and "ν_min 0.99" in rejected[0]
     nu = series(rec, "/plots/Lyon/nu")

@@ -145,7 +145,7 @@ def test_consensus_of_hand_made_placements():
 def cycle(t, robot, placements, *, accepted=True, adopted_from=""):
     chosen = SimpleNamespace(theta_deg={k: v[0] for k, v in placements.items()},
                              translation=lambda k: placements[k][1])
-    res = SimpleNamespace(accepted=accepted, chosen=chosen if accepted else None, wall_ms=1.0)
+    res = SimpleNamespace(accepted=accepted, chosen=chosen if accepted else None, wall_ms=1.0, cost_ms=1.0)
     return MergeCycle(t, robot, "x", res, {}, True, {k: 0.0 for k in placements}, False, False,
                       translation_error_m={k: 0.0 for k in placements}, adopted_from=adopted_from)
 

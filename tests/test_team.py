@@ -21,6 +21,9 @@ def test_superpose_gives_priority_to_occupied():
 
 def test_merge_orders_are_the_three_pairs_and_general_in_n():
     assert merge_orders(3) == [(0, 1, 2), (0, 2, 1), (1, 2, 0)]
+    # ranked by name: every robot evaluates the same orders, whichever map is its own (index 0)
+    assert merge_orders(3, ["Nevers", "Auckland", "Lyon"]) == [(1, 2, 0), (1, 0, 2), (2, 0, 1)]
+    assert merge_orders(3, ["Auckland", "Nevers", "Lyon"]) == [(0, 2, 1), (0, 1, 2), (2, 1, 0)]
     assert merge_orders(2) == [(0, 1)]
     orders = merge_orders(5)
     assert len(orders) == 10 and all(sorted(o) == list(range(5)) for o in orders)

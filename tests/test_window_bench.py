@@ -127,7 +127,7 @@ def test_judge_translation_and_placement():
 
 # --- metrics ------------------------------------------------------------------------------------------
 def _cycle(t, robot, accepted, correct, t_errors, first=False):
-    res = SimpleNamespace(accepted=accepted, wall_ms=1.0)
+    res = SimpleNamespace(accepted=accepted, wall_ms=1.0, cost_ms=1.0, chosen=None)
     angles = dict.fromkeys(t_errors, 0.1)
     return MergeCycle(t, robot, "x", res, {}, correct, angles, first, accepted and not correct,
                       translation_error_m=dict(t_errors))

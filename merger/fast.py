@@ -276,18 +276,17 @@ def _polar_boxes(x0, y0, size):
 class SectorBounds:
     """Upper bounds of a problem's coarse scores at 0°, 1°, …, 359° (see the module documentation)."""
 
-    def __init__(self, problem: RotationProblem, ref_roi: np.ndarray, sx: int) -> None:
+    def __init__(self, problem: RotationProblem, ref_roi: np.ndarray, sx: int, occ_idx=None) -> None:
         self.problem = problem
         n, res = problem.n, problem.ref.resolution
         self.lay = lay = sector_layout(n, res, sector_grain(n))
         self.measure = problem.measure
         flat = ref_roi.reshape(-1)
-        ref_occ, ref_free = flat == OCCUPIED_S, flat == FREE_S
         self.sx = sx
         spec = dict(self._moving_sectors(problem))
-        hists = {"n_occ": _hist(lay, np.flatnonzero(ref_occ))}
+        hists = {"n_occ": _hist(lay, np.flatnonzero(flat == OCCUPIED_S) if occ_idx is None else occ_idx)}
         if self.measure == "birk_carpin":
-            hists["n_free"] = _hist(lay, np.flatnonzero(ref_free))
+            hists["n_free"] = _hist(lay, np.flatnonzero(flat == FREE_S))
         spec.update(zip(hists, _row_spectra(lay, np.stack(list(hists.values()))), strict=True))
         n_occ = spec["n_occ"]
         a = _corr(n_occ, spec["may_occ"])
@@ -568,7 +567,7 @@ def _prepare(problem: RotationProblem):
     bounds = np.full(360, np.inf)  # without bounds every angle is evaluated (still exact)
     if problem.n <= MAX_BOUND_CELLS:  # the FFT error bound (module documentation) covers these ROIs
         try:
-            bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx)).values
+            bounds = SectorBounds(problem, ev.ref_roi, int(ev.sx), ev.occ_idx).values
         except _Inexact:  # never seen
             pass
     return ev, _Coarse(ev, np.array(bounds, np.float64))

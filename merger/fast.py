@@ -134,6 +134,7 @@ MAX_BATCH = 48
 FINE_EXTRA = 21  # at most this many refinement angles evaluated with the first coarse angle (ω̃) ...
 FINE_GAP = 0.06  # ... those whose per-angle bound is within this of the best one
 FINE_EXACT_MAX = 480  # up to this ROI side all 21 refinement angles ride with the first (one cheap batch)
+LARGE_ROI = 480  # from this ROI side on: coarser sectors (10 cells), larger blocks, more angles tightened
 TIGHTEN_BATCH = 32  # angles given the evaluator's per-angle bound at a time (ω̃)
 _DELTA_CELL = 1e-7  # margin of sectors and square tests, in moving cells (≫ every rounding error)
 _DELTA_RAD = 1e-9
@@ -154,7 +155,7 @@ def sector_grain(n: int) -> float:
     per-angle bound (a few µs each); 3.2 cells at 128, 6.4 at 256, 10 from 400 on (measured best on
     generated rooms: the sector stage costs 0.55, 0.75 and 1.9 ms at ROI 128, 256 and 800, and leaves
     15–40 angles above the answer's score)."""
-    return min(max(2.0, n / 64.0), 7.0) if n <= FINE_EXACT_MAX else 10.0
+    return min(max(2.0, n / 64.0), 7.0) if n <= LARGE_ROI else 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,7 +314,7 @@ class SectorBounds:
         the touching and path arguments (module documentation) hold for blocks unchanged."""
         lay = self.lay
         mov, mres = problem.moving, problem.moving.resolution
-        q = max(1, int(lay.wb / mres / (POOL_DIV if problem.n > FINE_EXACT_MAX else 3.0)))
+        q = max(1, int(lay.wb / mres / (POOL_DIV if problem.n > LARGE_ROI else 3.0)))
         cmx, cmy = problem.center_moving
         half = problem.n * lay.res / 2.0
         # only cells that meet the moving ROI's square matter (outside it a lookup is unknown): the crop is
@@ -532,11 +533,11 @@ class _Coarse:
             if best is None:  # a first exact value: the best bound of the first few, once tightened
                 extra = []
                 if self.can_tighten:
-                    top = cand[:FIRST_BATCH if self.ev.n <= FINE_EXACT_MAX else 32]
+                    top = cand[:FIRST_BATCH if self.ev.n <= LARGE_ROI else 32]
                     # the answer's refinement angles ride along: those of the two best sector bounds
                     # (the best tightened bound is nearly always one of them)
                     if with_fine and self.ev.n > FINE_EXACT_MAX:  # their bounds: the refinement's certificate
-                        self.tighten(top, [a for c in top[:2] for a in fine_angles(float(c))])
+                        self.tighten(top, fine_angles(float(top[0])))
                     else:
                         self.tighten(top)
                     cand = top[np.lexsort((top, -self.bounds[top]))]

@@ -428,12 +428,15 @@ class SparseEvaluator:
         """Compute the missing ``parts`` of the rows of ``thetas`` (floats), each part in one batch; returns
         their row indices."""
         ids = self._ids(thetas)
-        uniq = ids if len(set(thetas)) == len(thetas) else np.unique(ids)
+        if not ids.size:
+            return ids
         for part in parts:
             col = self._PARTS[part][0]
-            todo_ids = uniq[self._rows[uniq, col] < 0]
+            todo_ids = ids[self._rows[ids, col] < 0]
             if not todo_ids.size:
                 continue
+            if todo_ids.size > 1:
+                todo_ids = np.unique(todo_ids)
             todo = [self._angles[i] for i in todo_ids.tolist()]
             rots = _rotations([-t for t in todo])  # d = R(−θ) @ (kx, ky), as rotated_roi
             bad = np.zeros(len(todo), bool)

@@ -17,7 +17,10 @@ from merger.tree import merge_tree, pair_result
 P = MergeParams(roi_m=8.0, window_m=0.5)  # margin 0.05 (the default with a window)
 
 
-def case_maps(c, names=("Lyon", "Auckland")):
+# The reference map's name comes first: the strategies search a pair with that map as the reference
+# (merger.team.merge_orders ranks maps by name; merger.tree the same), and ambiguity is a property of
+# the search in that direction.
+def case_maps(c, names=("Auckland", "Lyon")):
     return [MapInput(names[0], c.ref, c.center_ref), MapInput(names[1], c.moving, c.center_moving)]
 
 
@@ -59,10 +62,10 @@ def test_a_point_symmetric_pair_is_ambiguous_with_both_angles_and_not_used(seed)
 def test_both_strategies_refuse_an_unresolved_pair(seed):
     c = window_case(seed, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
     orders = merge_team(case_maps(c), P)
-    assert not orders.accepted and "ambiguous pair Lyon←Auckland" in orders.reason
+    assert not orders.accepted and "ambiguous pair Auckland←Lyon" in orders.reason
     assert [a.verdict for a in orders.ambiguous] == ["unresolved"]
     tree = merge_tree(case_maps(c), P)
-    assert not tree.accepted and "ambiguous pair Lyon←Auckland" in tree.reason  # the only edge is dropped
+    assert not tree.accepted and "ambiguous pair Auckland←Lyon" in tree.reason  # the only edge is dropped
     assert [a.verdict for a in tree.ambiguous] == ["unresolved"]
     json.dumps(orders.to_dict()) and json.dumps(tree.to_dict())
     # the rule off (margin 0, the thesis's rule): the same pair is used, true or half-turned
@@ -89,7 +92,7 @@ def pillars_in_an_offset_room():
     fa, fb = (0.2, -0.1, 0.3), (-0.4, 0.3, 0.3 + math.radians(theta))
     ga, ca = partial_view(scene, fa, arc_viewpoints(90, 180, 1.8, k=8))
     gb, cb = partial_view(scene, fb, arc_viewpoints(90, 180, 1.8, k=8))
-    return [MapInput("Lyon", ga, ca), MapInput("Auckland", gb, cb)], theta
+    return [MapInput("Auckland", ga, ca), MapInput("Lyon", gb, cb)], theta
 
 
 @pytest.mark.parametrize("window_m", [0.0, 0.5])
@@ -105,11 +108,11 @@ def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_tru
     assert a.runner_up.nu - a.best.nu >= 0.05  # ... the whole maps the truth
     assert pr.verification.passed and near(pr.alignment.theta_deg, theta, 0.5)
     for res in (merge_team(maps, params), merge_tree(maps, params)):
-        assert res.accepted and near(res.chosen.theta_deg["Auckland"], theta, 0.5), res.reason
+        assert res.accepted and near(res.chosen.theta_deg["Lyon"], theta, 0.5), res.reason
         assert [x.verdict for x in res.ambiguous] == ["runner_up"]
     # without the rule the ROI's best, the half turn, is the pair's answer and fails verification
     off = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.0))
-    assert not off.accepted and near(off.top.theta_deg["Auckland"], theta + 180.0, 1.0)
+    assert not off.accepted and near(off.top.theta_deg["Lyon"], theta + 180.0, 1.0)
 
 
 def test_verdict_needs_the_margin_either_way():
@@ -137,17 +140,18 @@ def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
                           centers_given={n: record._to_frame(sc.world.center, start[n]) for n in names},
                           center_world=tuple(sc.world.center), circle_radius=sc.robots.radius_m, seed=sc.seed)
     c = window_case(0, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
-    res = merge_team(case_maps(c, names[:2]), P)
+    me, other = sorted(names[:2])  # Auckland, Lyon: the merging robot's map is the reference
+    res = merge_team(case_maps(c, (me, other)), P)
     a = res.ambiguous[0]
     rrd = tmp_path / "amb.rrd"
     rec = RerunRecorder(rrd)
     rec.on_start(sim)
-    truth = {names[0]: 0.0, names[1]: c.theta_deg}
+    truth = {me: 0.0, other: c.theta_deg}
     for t in (1.0, 2.0):
-        rec.on_merge_cycle(MergeCycle(t, names[0], names[1], res, truth, False, {}, False, False))
+        rec.on_merge_cycle(MergeCycle(t, me, other, res, truth, False, {}, False, False))
     rec.on_end(SimpleNamespace(to_dict=lambda: {"robots": {}, "sim_s": 2.0, "wall_s": 0.0, "interrupted": False,
                                                  "false_merges": 0, "rejected_correct": 0}))
-    ev = [r["TextLog:text"][0] for r in read_recording(rrd)[f"/events/{names[0]}"] if not r["static"]]
+    ev = [r["TextLog:text"][0] for r in read_recording(rrd)[f"/events/{me}"] if not r["static"]]
     amb = [x for x in ev if x.startswith("ambiguous pair")]
     assert len(amb) == 1, ev
     assert f"θ {a.best.theta_deg:.1f}°" in amb[0] and f"θ {a.runner_up.theta_deg:.1f}°" in amb[0]

@@ -24,6 +24,11 @@ Problem kinds (:func:`problem`), each for the three measures (ω̃, Birk–Carpi
 * ``near_empty`` — nearly blank maps: a handful (0–6) of occupied cells, some free space, or none;
 * ``mixed`` — random grids whose moving map has another cell size (0.04, 0.1 m) and tiny ROIs (1–40 cells).
 
+``--paths large`` runs every problem through the code paths of large ROIs (from ROI side
+``merger.fast.LARGE_ROI`` on): 10-cell sectors read in blocks of 2 × 2 cells, the refinement decided by
+per-angle bounds (exact scores only where a bound reaches the best), and the moving-occupied counts cell
+by cell (:func:`large_roi_paths`); the default runs each problem through the paths of its own size.
+
 For each problem both searches run and the script checks that the fast answer *is* the reference's:
 θ, score, counts, the 21 refinement scores, the runner-up (angle and score), and that the fast
 profile is an upper envelope of the reference's (≥ at every angle). It prints a table per kind and
@@ -41,8 +46,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import contextlib  # noqa: E402
+
 import numpy as np  # noqa: E402
 
+import merger.fast as fast_mod  # noqa: E402
+import merger.sparse as sparse_mod  # noqa: E402
 from merger.fast import fast_search  # noqa: E402
 from merger.grid import OccupancyGrid  # noqa: E402
 from merger.search import RotationProblem, reference_search  # noqa: E402
@@ -101,6 +110,19 @@ def problem(seed: int, kind: str, measure: str, scale: float = 1.0) -> RotationP
     raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
 
 
+@contextlib.contextmanager
+def large_roi_paths():
+    """Within the block, every ROI takes the code paths of large ROIs (the size thresholds set to 0)."""
+    saved = fast_mod.LARGE_ROI, fast_mod.FINE_EXACT_MAX, sparse_mod.UNION_MAX_CELLS
+    fast_mod.LARGE_ROI = fast_mod.FINE_EXACT_MAX = sparse_mod.UNION_MAX_CELLS = 0
+    fast_mod.clear_cache()
+    try:
+        yield
+    finally:
+        fast_mod.LARGE_ROI, fast_mod.FINE_EXACT_MAX, sparse_mod.UNION_MAX_CELLS = saved
+        fast_mod.clear_cache()
+
+
 def compare(p: RotationProblem) -> dict:
     """Both searches on ``p``: does the fast one give the reference's answer, evidence included?"""
     t0 = time.perf_counter()
@@ -131,12 +153,19 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=1.0, help="scale of the 'views' kind (default 1)")
     ap.add_argument("--kinds", default=",".join(KINDS), help="comma-separated subset of " + ", ".join(KINDS))
     ap.add_argument("--measures", default=",".join(MEASURES), help="comma-separated subset of " + ", ".join(MEASURES))
+    ap.add_argument("--paths", choices=("default", "large"), default="default",
+                    help="'large': every problem through the large-ROI code paths (default: its own size's)")
     args = ap.parse_args(argv)
     measures = [m.strip() for m in args.measures.split(",") if m.strip()]
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     bad = [m for m in measures if m not in MEASURES] + [k for k in kinds if k not in KINDS]
     if bad or args.n < 1 or not args.scale > 0:
         ap.error(f"--measures among {', '.join(MEASURES)}, --kinds among {', '.join(KINDS)}, --n ≥ 1, --scale > 0")
+    with large_roi_paths() if args.paths == "large" else contextlib.nullcontext():
+        return _run(args, kinds, measures)
+
+
+def _run(args, kinds: list[str], measures: list[str]) -> int:
     print(f"{'kind':>10} {'measure':>12} {'problems':>8} {'same':>6} {'ref ms':>8} {'fast ms':>8}   (medians)",
           flush=True)
     failures, total, same = [], 0, 0
@@ -152,7 +181,8 @@ def main(argv=None) -> int:
             total, same = total + len(rows), same + ok
             print(f"{kind:>10} {m:>12} {len(rows):>8} {ok:>6} {statistics.median(r['ref_ms'] for r in rows):>8.0f} "
                   f"{statistics.median(r['fast_ms'] for r in rows):>8.1f}", flush=True)
-    print(f"total: {same} of {total} problems give the reference's answer; {total - same} differ")
+    print(f"total: {same} of {total} problems give the reference's answer; {total - same} differ"
+          f"{' (large-ROI code paths)' if args.paths == 'large' else ''}")
     for r in failures:
         print(f"DIFF {r['kind']} seed {r['seed']} {r['measure']}: {', '.join(r['diffs'])}; fast θ, score, runner-up "
               f"{r['fast']} vs reference {r['ref']}")

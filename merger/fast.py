@@ -127,7 +127,8 @@ from .search import (
 )
 from .sparse import SparseEvaluator, lattice_coords
 
-POOL_DIV = 4.0  # blocks of the moving map ≈ a sector / POOL_DIV
+POOL_DIV = 3.0  # blocks of the moving map ≈ a sector / POOL_DIV (POOL_DIV_LARGE from ROI side LARGE_ROI on)
+POOL_DIV_LARGE = 4.0
 FIRST_BATCH = 20  # best sector bounds given the per-angle bound before the first exact evaluation
 EXACT_BATCH = 4  # exact evaluations per batch after the first (best bounds first); batches then double
 MAX_BATCH = 48
@@ -314,7 +315,7 @@ class SectorBounds:
         the touching and path arguments (module documentation) hold for blocks unchanged."""
         lay = self.lay
         mov, mres = problem.moving, problem.moving.resolution
-        q = max(1, int(lay.wb / mres / (POOL_DIV if problem.n > LARGE_ROI else 3.0)))
+        q = max(1, int(lay.wb / mres / (POOL_DIV_LARGE if problem.n > LARGE_ROI else POOL_DIV)))
         cmx, cmy = problem.center_moving
         half = problem.n * lay.res / 2.0
         # only cells that meet the moving ROI's square matter (outside it a lookup is unknown): the crop is

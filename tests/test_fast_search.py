@@ -11,6 +11,7 @@ near-empty, identical and lattice-aligned maps, symmetric scenes over short arcs
 sampled here; the script runs thousands of them.
 """
 
+import contextlib
 import importlib.util
 import math
 from pathlib import Path
@@ -21,6 +22,7 @@ from hypothesis import strategies as st
 
 import merger
 import merger.fast as fast_mod
+import merger.sparse as sparse_mod
 from merger.fast import SectorBounds, exact_profile, fast_search
 from merger.grid import OccupancyGrid
 from merger.polar import pool_factor
@@ -76,12 +78,22 @@ def test_fast_is_registered_and_the_default():
     assert inspect.signature(merger.align).parameters["method"].default == "fast"
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
+@settings(max_examples=80, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 90), measure=st.sampled_from(MEASURES),
        mres=st.sampled_from([0.05, 0.05, 0.04, 0.1]), special=st.booleans(),
-       theta=st.floats(0.0, 360.0), round_centers=st.booleans())
-def test_sparse_evaluator_equals_measure_fn(seed, n, measure, mres, special, theta, round_centers):
-    """Counts and values at batches of angles equal measure_fn on the reference's own ROIs."""
+       theta=st.floats(0.0, 360.0), round_centers=st.booleans(), by_cell=st.booleans())
+def test_sparse_evaluator_equals_measure_fn(seed, n, measure, mres, special, theta, round_centers, by_cell):
+    """Counts and values at batches of angles equal measure_fn on the reference's own ROIs — the
+    moving-occupied counts by shared candidate sets (small ROIs) and cell by cell (large ROIs)."""
+    saved = sparse_mod.UNION_MAX_CELLS
+    try:
+        sparse_mod.UNION_MAX_CELLS = 0 if by_cell else 10**9
+        _check_sparse_evaluator(seed, n, measure, mres, special, theta, round_centers)
+    finally:
+        sparse_mod.UNION_MAX_CELLS = saved
+
+
+def _check_sparse_evaluator(seed, n, measure, mres, special, theta, round_centers):
     rng = np.random.default_rng(seed)
     ref = random_grid(rng, tuple(rng.integers(20, 120, 2)), 0.05, tuple(rng.uniform(-3, 0, 2)))
     mov = random_grid(rng, tuple(rng.integers(20, 120, 2)), mres, tuple(rng.uniform(-3, 0, 2)))
@@ -216,6 +228,60 @@ def test_agree_fast_finds_no_difference():
                 assert not r["diffs"], (kind, measure, seed, r)
 
 
+def test_agree_fast_finds_no_difference_on_the_large_roi_paths():
+    """The same through the code paths of large ROIs (coarse sectors in 2 × 2 blocks, the refinement
+    decided by per-angle bounds, moving-occupied counts cell by cell), taken by small problems here."""
+    with agree_fast.large_roi_paths():
+        for kind in agree_fast.KINDS:
+            for measure in MEASURES:
+                r = agree_fast.compare(agree_fast.problem(9, kind, measure))
+                assert not r["diffs"], (kind, measure, r)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 120), mres=st.sampled_from([0.05, 0.05, 0.04, 0.1]),
+       start=st.floats(0.0, 360.0), round_centers=st.booleans(), scene=st.booleans())
+def test_per_angle_bounds_never_below_the_exact_score(seed, n, mres, start, round_centers, scene):
+    """ω̃'s per-angle bound (exact agr̃ and reference-occupied dis; the moving-occupied dis replaced by
+    the float32 count of cells certainly covering a reference-free point) is never below the exact value,
+    at coarse and refinement angles alike."""
+    rng = np.random.default_rng(seed)
+    if scene:
+        ga, ca, gb, cb, roi = random_view_pair(seed)
+        p = RotationProblem(ga, gb, ca, cb, roi, "similarity")
+    else:
+        ref = random_grid(rng, tuple(rng.integers(20, 120, 2)), 0.05, tuple(rng.uniform(-3, 0, 2)))
+        mov = random_grid(rng, tuple(rng.integers(20, 120, 2)), mres, tuple(rng.uniform(-3, 0, 2)))
+        cr, cm = rng.uniform(-0.5, 2, 2), rng.uniform(-0.5, 2, 2)
+        if round_centers:
+            cr, cm = np.round(cr, 1), np.round(cm, 1)
+        p = RotationProblem(ref, mov, tuple(cr), tuple(cm), n * 0.05, "similarity")
+    angles = [float(a) for a in np.concatenate([start + np.arange(-10, 11) * 0.1, np.arange(0, 360, 7.0)])]
+    bounds = SparseEvaluator(p).upper_bounds(angles)
+    exact = SparseEvaluator(p).scores(angles)
+    assert (bounds >= exact).all()
+
+
+def test_refinement_scores_are_exact_when_read_and_pickle_as_a_tuple():
+    """On large-ROI paths the refinement scores not needed for θ are computed when ``fine`` is read:
+    exactly the reference's, whether read by index, by unpacking or through pickling."""
+    import pickle
+
+    with agree_fast.large_roi_paths():
+        for seed in (1, 2):
+            p = agree_fast.problem(seed, "views", "similarity")
+            ref = reference_search(p)
+            a, b, c = fast_search(p), fast_search(p), fast_search(p)
+            np.testing.assert_array_equal(a.fine[1], ref.fine[1])
+            angles, values = b.fine
+            np.testing.assert_array_equal(values, ref.fine[1])
+            np.testing.assert_array_equal(angles, ref.fine[0])
+            copy = pickle.loads(pickle.dumps(c))
+            assert isinstance(copy.fine, tuple)
+            np.testing.assert_array_equal(copy.fine[1], ref.fine[1])
+            assert (a.theta_deg, a.score) == (ref.theta_deg, ref.score)
+
+
 def test_compare_reports_a_difference():
     """The comparison can fail: a search answering another angle is reported."""
     p = agree_fast.problem(3, "views", "similarity")
@@ -252,13 +318,14 @@ def _small_problem(data, measure):
     return RotationProblem(grids[0], grids[1], cr, cm, n * 0.05, measure)
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(data=st.data(), measure=st.sampled_from(MEASURES))
-def test_fast_equals_reference_on_arbitrary_small_grids(data, measure):
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(data=st.data(), measure=st.sampled_from(MEASURES), large=st.booleans())
+def test_fast_equals_reference_on_arbitrary_small_grids(data, measure, large):
     p = _small_problem(data, measure)
     ref = reference_search(p)
-    assert_same_answer(fast_search(p), ref)
-    np.testing.assert_array_equal(exact_profile(p), ref.profile)
+    with agree_fast.large_roi_paths() if large else contextlib.nullcontext():
+        assert_same_answer(fast_search(p), ref)
+        np.testing.assert_array_equal(exact_profile(p), ref.profile)
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)

@@ -54,8 +54,8 @@ when a *true upper bound* of its score shows it cannot win; every other angle is
   moving center up to rounding (≪ δ), hence inside the (widened) moving sector s(p) − θ: the bins of
   band i shift by exactly B_i·θ. The reference resolves that point to the moving cell containing it
   (floor), and to *unknown* outside the moving ROI's square.
-* *Blocks.* The moving map is read in q × q blocks of cells (q ≈ a third of a sector; 1 for small
-  ROIs). A block *may* hold a class when one of its cells does and *surely* holds it when all do; blocks
+* *Blocks.* The moving map is read in q × q blocks of cells (q ≈ a third of a sector, a quarter from
+  ROI side LARGE_ROI on, where sectors are 10 cells; 1 for small ROIs). A block *may* hold a class when one of its cells does and *surely* holds it when all do; blocks
   tile the plane as cells do, so the arguments below hold for blocks word for word.
 * *Touching.* A block touches a sector when its closed square meets the widened sector. We mark every
   sector whose polar box meets the block's polar box — radius from the nearest to the farthest point of
@@ -92,7 +92,14 @@ when a *true upper bound* of its score shows it cannot win; every other angle is
   dis are exact; the other half is replaced by the number of occupied moving cells, not straddling the
   square, whose centre maps (x_ref = c_ref + R(θ)(x_mov − c_mov)) within the inscribed radius of a
   reference-free lattice point: that point's lookup lies in that cell (rotations keep distances), and
-  each lattice point has one cell, so that count ≤ the true half; the same monotonicity applies.
+  each lattice point has one cell, so that count ≤ the true half; the same monotonicity applies. The
+  count is taken in float32 with the radius shrunk by more than twice the float32 error (proved in
+  :meth:`SparseEvaluator._disagree_lower`): a cell it counts covers its point in exact arithmetic.
+* *Exact values* (what every pruning is compared against) come from
+  :class:`merger.sparse.SparseEvaluator`, whose counts are the reference's: certified lookups (an angle
+  with a lookup within 1e-8 cell of a cell border takes the reference code path); on large ROIs the
+  moving-occupied half of dis is counted cell by cell, in float32 where a lookup is farther than 1e-5
+  cell from the cell's border (float32 errs by < 1e-6 there) and in float64, certified, elsewhere.
 
 Everything about the sectors and the lattice depends only on (n, cell size, sector size) and is cached;
 a moving map's sector spectra are kept across the searches of a merge cycle (bounded, checked against

@@ -107,7 +107,8 @@ class Simulation:
         sc = self.scenario = scenario
         # the robots hold the same teammates' maps and would search the same pairs: each is computed once
         # and its time charged to every robot that takes it (merger.memo; results and metrics unchanged)
-        self.memo = Memo() if share_searches else None
+        n = len(sc.robots.names)  # entries: a few map versions of every pair (older ones are never asked again)
+        self.memo = Memo(max(32, 3 * n * (n - 1))) if share_searches else None
         self.seed = int(sc.seed)
         self.robot_names = list(sc.robots.names)
         ss = np.random.SeedSequence(self.seed)

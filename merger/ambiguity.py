@@ -133,7 +133,8 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
     if top is None:
         return None
     _, th_c, tc = top
-    angles = fine_angles(th_c)
+    angles = np.array([a for a in fine_angles(th_c)
+                       if abs(angle_diff_deg(float(a), al.theta_deg)) > RUNNER_UP_MIN_SEPARATION_DEG])
     vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
     kf = int(np.argmax(vals))
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])

@@ -36,6 +36,7 @@ import numpy as np
 
 from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from .similarity import Counts, Similarity, count_cells, index_from_counts
+from .transform import rotated_roi_fast
 
 _TOL_CELL = 1e-8  # certified floor: margin to a cell border, in cells
 _TOL_M = 1e-9  # certified square mask: margin to the ROI border, in metres
@@ -508,10 +509,13 @@ class SparseEvaluator:
         return np.count_nonzero(self._states(self._free_h, rots, bad) == FREE_S, axis=1)
 
     def full_counts(self, theta: float) -> np.ndarray:
-        """A complete row at θ by the reference code path (whole ROI, :meth:`RotationProblem.moving_roi`)."""
+        """A complete row at θ from the whole rotated ROI: the reference's states
+        (:meth:`RotationProblem.moving_roi`), computed by :func:`merger.transform.rotated_roi_fast` (the same
+        states; it takes the reference's own code path where a lookup is too close to a border to call)."""
         key = float(theta)
         if key not in self._full:
-            m = self.problem.moving_roi(key)
+            p = self.problem
+            m = rotated_roi_fast(p.moving, key, p.center_moving, p.n, p.ref.resolution)
             c = count_cells(self.ref_roi, m)
             self._full[key] = [c.agree, c.disagree, 0, c.free_agree,
                                int(np.count_nonzero(m == OCCUPIED_S)) - c.agree, 0]

@@ -111,7 +111,7 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
     translation of the window at the coarse angles within ±2° of it (more than 10° from ``al``), then
     refined as the search refines its answer (0.1° over ±1°, then below the grid when the problem asks
     for it), so that both hypotheses are compared on equal terms."""
-    from .window import WindowEvaluator, refine_alignment
+    from .window import WindowEvaluator, beyond_window, reference_beyond, refine_alignment
 
     if margin <= 0:
         return None
@@ -140,9 +140,15 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
     if al.score - score >= margin:
         return None
+    top_value = top[0]
+    guard = reference_beyond if al.method == "reference" else beyond_window
+    # the guard beyond the window for the rival's own answer: a better alignment outside the window than
+    # the rival refuses it as it would the best (the best may be the truth's peak cut by the window's
+    # edge, and the rival the scene's half turn)
     out = Alignment(theta, score, ev.counts(float(angles[kf]), tc), al.measure, al.method, al.roi_m, al.profile,
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
-                    cells=tc, fine=(np.asarray(angles, np.float64), vals), _beyond=lambda: al.beyond)
+                    cells=tc, fine=(np.asarray(angles, np.float64), vals),
+                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)))
     return refine_alignment(problem, out, ev) if problem.refine else out
 
 

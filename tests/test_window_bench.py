@@ -246,3 +246,19 @@ def test_a_center_error_beyond_the_windows_reach_is_refused_not_merged_falsely()
     c = refused[0]
     th = float(c.result.reason.split("(θ ")[1].split("°")[0])
     assert min(abs(angle_diff_deg(th, t)) for t in c.truth_deg.values()) <= 2.0, (c.result.reason, c.truth_deg)
+
+
+def test_a_half_turn_chosen_by_whole_map_evidence_is_still_guarded_beyond_the_window():
+    """scene1, seed 8, centers off by 0.35 m, ±0.5 m window: for the pair Nevers onto Auckland the ROI's
+    best is the truth's own peak cut by the window's edge (θ 119.5°, one cell inside the true (8, −11)),
+    and its runner-up the room's half turn (300°, ROI score 0.046 lower): an ambiguous pair whose whole
+    maps prefer the half turn (merger.ambiguity). The guard must then judge the half turn itself: the
+    truth outside the window scores 0.72 against its 0.60, so the cycle is refused — before the half turn
+    took the best's guard result (nothing beyond a one-cell cut) and was accepted at 4.3 s, a false merge
+    repeated by two robots."""
+    sc = scene("scene1", "duration_s=6", "center_error.magnitude_m=0.35", "merger.window_m=0.5", "seed=8")
+    obs = _Cycles()
+    res = Simulation(sc, [obs]).run()
+    assert res.false_merges == 0
+    refused = [c for c in obs.cycles if not c.result.accepted and "beyond the window" in c.result.reason]
+    assert refused, [c.result.reason for c in obs.cycles]

@@ -49,6 +49,7 @@ from merger.polar import clear_cache  # noqa: E402
 from merger.search import RotationProblem, fine_angles, reference_search, wrap_deg  # noqa: E402
 from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene  # noqa: E402
 from merger.team import MapInput, MergeParams, merge_team  # noqa: E402
+from merger.window import clear_rotation_cache  # noqa: E402
 
 RES = 0.05
 ROI_CELLS = (128, 256, 400, 800)
@@ -119,9 +120,11 @@ def timed(fn, *args):
 
 
 def clear_caches():
-    """Forget every cache of the fast search (polar spectra, rotated ROIs, sector spectra)."""
+    """Forget every cache of the fast search that holds map data (polar spectra, sector spectra, the
+    windowed search's rotated ROIs); caches of the lattice geometry alone stay."""
     clear_cache()
     clear_fast_cache()
+    clear_rotation_cache()
 
 
 def cold_fast(problem):

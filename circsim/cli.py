@@ -140,7 +140,7 @@ def summary(res) -> str:
                      f"{r['rejected_correct']:>11}  {e}")
     mc = d["merge_cycle_ms"]
     lines += ["", f"false merges {d['false_merges']}   rejected correct {d['rejected_correct']}   "
-              + (f"merge cycle median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
+              + (f"merge cycle cost median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
                  if mc["count"] else "no merge cycle")]
     cs = d.get("consensus_s")
     lines.append("consensus (every robot holds the same global alignment): "

@@ -35,23 +35,19 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from circsim.events import Observer  # noqa: E402
 from circsim.scenario import load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 
-class _MergeWall:
+class _MergeWall(Observer):
     """The wall time the merge cycles took in this process (``cycle_ms`` is their cost: wall time plus the
     computing time of the results a robot took from the run's shared memo, merger.memo)."""
 
     def __init__(self) -> None:
         self.ms = 0.0
 
-    def __getattr__(self, hook):
-        if hook == "on_merge_cycle":
-            return self._cycle
-        return lambda *a: None
-
-    def _cycle(self, c) -> None:
+    def on_merge_cycle(self, c) -> None:
         self.ms += c.result.wall_ms
 
 

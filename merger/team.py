@@ -338,7 +338,8 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
         hit = reuse.get(key) if key is not None else None
         if hit is None:
             prob = problem_for(sup, first.center, m, params)
-            ref = "+".join(maps[x].name for x in order[:order.index(k)])
+            placed = order[:order.index(k)]
+            ref = "+".join(maps[x].name for x in placed)
 
             def step(prob=prob, ref=ref, sup=sup, k=k, m=m):
                 return resolve(prob, search(prob, params.method), params.margin,
@@ -346,8 +347,7 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
             if memo is None:
                 hit = step()
             else:
-                before = tuple(map_key(maps[x]) for x in order[:order.index(k)])
-                hit = memo.get(("order-step", before, map_key(m), params), step)
+                hit = memo.get(("order-step", tuple(map_key(maps[x]) for x in placed), map_key(m), params), step)
             if key is not None:
                 reuse[key] = hit
         al, amb = hit

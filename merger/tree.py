@@ -128,11 +128,8 @@ def spanning_tree(n: int, edges: dict[tuple[int, int], float]) -> list[tuple[int
 
 def relative(al: Alignment, reverse: bool) -> Placement:
     """(θ, t) of a pair's alignment (j onto i); ``reverse``: i onto j, θ_ji = −θ_ij, t_ji = −R(−θ_ij)·t_ij."""
-    th, t = float(al.theta_deg), np.asarray(al.translation_m, np.float64)
-    if not reverse:
-        return th, (float(t[0]), float(t[1]))
-    d = -(rotation(-th) @ t)
-    return wrap_deg(-th), (float(d[0]), float(d[1]))
+    rel = (float(al.theta_deg), (float(al.translation_m[0]), float(al.translation_m[1])))
+    return invert(rel) if reverse else rel
 
 
 def pair_placement(p: PairResult, names, i: int, j: int) -> Placement:

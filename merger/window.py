@@ -289,12 +289,9 @@ class WindowEvaluator:
     def _counts(self, theta: float, ts, free_agree: bool = True):
         """Per translation: agr̃, dis where the moving map is occupied, dis where the reference is,
         free/free (if asked), the reference ROI's occupied count; and the moving ROI's occupied count."""
-        n, kk = self.n, self.reach
+        n = self.n
         (cols_t, cb, cf, _), (rows_t, rb, rf, _) = self._axes_table()
-        ts = np.asarray(ts, np.intp).reshape(-1, 2)
-        ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
-        if ia.min() < 0 or ib.min() < 0 or ia.max() >= cols_t.shape[0] or ib.max() >= rows_t.shape[0]:
-            raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
+        ia, ib = self._indices(ts)
         (pi, pj, pflat), mfp, mov = self._mov[theta]
         wp = self._pad.shape[1]
         block = cb[ia] & rb[ib]
@@ -331,15 +328,21 @@ class WindowEvaluator:
                     ff[r] = np.count_nonzero(padF2[np.ix_(rw, cl)] & mf)
         return agr, d_mo, d_ro, ff, sx, pflat.size
 
+    def _indices(self, ts):
+        """Indices into the axes table of translations ``ts`` [(a, b), ...] cells (checked in reach)."""
+        kk = self.reach
+        ts = np.asarray(ts, np.intp).reshape(-1, 2)
+        ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
+        if ia.min() < 0 or ib.min() < 0 or ia.max() > 2 * kk or ib.max() > 2 * kk:
+            raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
+        return ia, ib
+
     def _similarity_values(self, theta: float, ts):
         """ω̃ at angle θ and translations ``ts`` when every window is a plain block of the padded
         reference (the usual case; None otherwise): :meth:`_counts`'s gathers, fewer steps. The floats
         are :func:`merger.similarity.index_from_counts`'s: integer counts, one correctly rounded division."""
-        (cols_t, cb, cf, _), (rows_t, rb, rf, _) = self._tab
-        kk = self.reach
-        ia, ib = ts[:, 0] + kk, ts[:, 1] + kk
-        if ia.min() < 0 or ib.min() < 0 or ia.max() >= cols_t.shape[0] or ib.max() >= rows_t.shape[0]:
-            raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
+        (_, cb, cf, _), (_, rb, rf, _) = self._tab
+        ia, ib = self._indices(ts)
         if not (cb[ia] & rb[ib]).all():
             return None
         (_, _, pflat), mfp, _ = self._mov[theta]
@@ -355,7 +358,7 @@ class WindowEvaluator:
     def _values(self, theta: float, ts) -> list[float]:
         m = self.problem.measure
         if m == "similarity":
-            fast = self._similarity_values(theta, np.asarray(ts, np.intp).reshape(-1, 2))
+            fast = self._similarity_values(theta, ts)
             if fast is not None:
                 return fast
         agr, d_mo, d_ro, ff, sx, sy = self._counts(theta, ts, free_agree=m == "birk_carpin")

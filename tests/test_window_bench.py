@@ -230,18 +230,26 @@ class _Cycles:
         return (lambda *a: self.cycles.append(a[0])) if hook == "on_merge_cycle" else (lambda *a: None)
 
 
+def _beyond_reach_run(seed: int, duration_s: float) -> list:
+    """scene1, centers off by 0.35 m, ±0.5 m window: asserts 0 false merges and at least one cycle refused
+    "beyond the window"; returns the refused cycles."""
+    sc = scene("scene1", f"duration_s={duration_s:g}", "center_error.magnitude_m=0.35", "merger.window_m=0.5",
+               f"seed={seed}")
+    obs = _Cycles()
+    res = Simulation(sc, [obs]).run()
+    assert res.false_merges == 0
+    refused = [c for c in obs.cycles if not c.result.accepted and "beyond the window" in c.result.reason]
+    assert refused, [c.result.reason for c in obs.cycles]
+    return refused
+
+
 def test_a_center_error_beyond_the_windows_reach_is_refused_not_merged_falsely():
     """scene1 with centers off by 0.35 m and a ±0.5 m window: two robots' errors add up to more than the
     window, so for some pairs the true translation lies outside it, and the best alignment inside is the
     point-symmetric room's half turn (before the guard, seed 2 accepted 104 such false merges in 30 s).
     The guard (merger.window.beyond_window) finds the better alignment outside the window and the cycle is
     refused with a reason naming it: 0 false merges."""
-    sc = scene("scene1", "duration_s=8", "center_error.magnitude_m=0.35", "merger.window_m=0.5", "seed=2")
-    obs = _Cycles()
-    res = Simulation(sc, [obs]).run()
-    assert res.false_merges == 0
-    refused = [c for c in obs.cycles if not c.result.accepted and "beyond the window" in c.result.reason]
-    assert refused, [c.result.reason for c in obs.cycles]
+    refused = _beyond_reach_run(seed=2, duration_s=8)
     # what the guard found is the truth: the refusal names the true rotation of the misplaced map
     c = refused[0]
     th = float(c.result.reason.split("(θ ")[1].split("°")[0])
@@ -256,9 +264,4 @@ def test_a_half_turn_chosen_by_whole_map_evidence_is_still_guarded_beyond_the_wi
     truth outside the window scores 0.72 against its 0.60, so the cycle is refused — before the half turn
     took the best's guard result (nothing beyond a one-cell cut) and was accepted at 4.3 s, a false merge
     repeated by two robots."""
-    sc = scene("scene1", "duration_s=6", "center_error.magnitude_m=0.35", "merger.window_m=0.5", "seed=8")
-    obs = _Cycles()
-    res = Simulation(sc, [obs]).run()
-    assert res.false_merges == 0
-    refused = [c for c in obs.cycles if not c.result.accepted and "beyond the window" in c.result.reason]
-    assert refused, [c.result.reason for c in obs.cycles]
+    _beyond_reach_run(seed=8, duration_s=6)

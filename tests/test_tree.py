@@ -180,6 +180,61 @@ def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
     assert adjust(place, chain_only, names) == place
 
 
+def test_pairs_that_did_not_verify_but_agree_with_the_tree_close_loops_in_the_adjustment():
+    """A chain 0-1-2-3 of verified pairs, each off by +0.7° (the far end 2.1° off); the pairs 0|2, 0|3 and
+    1|3 did not verify (too few cells) but their own searches are near the truth. With ``params`` they are
+    weaker loops: the far end comes within 1°. A weak pair 10° or more from the tree, one under ν_min/2, and
+    an ambiguous one are not used; without ``params`` only verified pairs count (a tree: unchanged)."""
+    from merger.ambiguity import PairAmbiguity
+    from merger.tree import adjust, compose_tree, loop_edges
+
+    def pair(i, j, theta, nu, passed=True, support=1100):
+        v = Verification(nu, Counts(support - 100, 100), passed, "" if passed else "support < min_support")
+        return PairResult(str(i), str(j), _al(theta, (0.0, 0.0)), v)
+
+    params = MergeParams(nu_min=0.5, min_support=200)
+    chain_pairs = {(0, 1): pair(0, 1, 90.7, 0.6), (1, 2): pair(1, 2, 90.7, 0.6), (2, 3): pair(2, 3, 90.7, 0.6)}
+    weak = {(0, 2): pair(0, 2, 180.1, 0.5, False, 150), (0, 3): pair(0, 3, 270.2, 0.45, False, 180),
+            (1, 3): pair(1, 3, 180.0, 0.4, False, 120)}
+    names = [str(k) for k in range(4)]
+    tree = spanning_tree(4, {k: v.verification.nu for k, v in chain_pairs.items()})
+    place, _ = compose_tree(4, tree, chain_pairs, names)
+    assert abs(angle_diff_deg(place[3][0], 270.0) - 2.1) < 1e-9
+    pairs = {**chain_pairs, **weak}
+    assert adjust(place, pairs, names) == place  # verified pairs only: a tree
+    edges = loop_edges(place, pairs, names, params)
+    assert len(edges) == 6
+    weights = {(i, j): w for i, j, _, w in edges}
+    assert weights[(0, 2)] == pytest.approx(0.5 * 150 / 200) and weights[(1, 3)] == pytest.approx(0.4 * 120 / 200)
+    adjusted = adjust(place, pairs, names, params)
+    assert abs(angle_diff_deg(adjusted[3][0], 270.0)) < 1.0
+    assert all(abs(angle_diff_deg(adjusted[k][0], 90.0 * k)) < 1.0 for k in range(4))
+    assert adjusted[0] == (0.0, (0.0, 0.0))
+    amb = PairAmbiguity.__new__(PairAmbiguity)
+    excluded = {(0, 2): pair(0, 2, 192.0, 0.5, False, 150),  # 10.6° from the tree's 181.4°
+                (0, 3): pair(0, 3, 270.2, 0.2, False, 180),  # ν < ν_min / 2
+                (1, 3): dataclasses.replace(weak[(1, 3)], ambiguity=amb)}
+    assert adjust(place, {**chain_pairs, **excluded}, names, params) == place
+
+
+def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain():
+    """The hall with 7 robots, seed 1: at 5.7 s a five-edge chain of the spanning tree (one verified loop)
+    placed maps 2.04–2.15° off, two false merges; the weaker loops of the adjustment bring every placement
+    within the tolerance (here within 0.9°)."""
+    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    base = load_scenario(bundled_scenarios()["hall8"])
+    names = list(base.robots.names)[:7]
+    angles = [round((90.0 + k * 360.0 / 7) % 360.0, 3) for k in range(7)]
+    sc = base.with_overrides([f"robots.names=[{', '.join(names)}]",
+                              f"robots.start_angles_deg=[{', '.join(map(str, angles))}]",
+                              "duration_s=7", "seed=1", "merger.strategy=tree", "merger.min_maps=2"])
+    res = Simulation(sc).run()
+    assert res.false_merges == 0
+    assert sum(r.first_merge_s is not None for r in res.robots.values()) >= 5
+
+
 def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
     from circsim.cli import main
     from circsim.record import read_recording

@@ -168,6 +168,9 @@ class MergerSettings:
         centers, for centers known only roughly); 0 is the thesis's rotation-only search. At most
         ``roi_m`` / 4.
     refine : refine θ and t below the search grid (off: θ on the thesis's 0.1° grid, t in whole cells).
+    combine_orders : (strategy orders) the chosen placement is the mean of the accepted orders that agree
+        with the highest-Σν one within 10° and 0.2 m, when it verifies on the whole maps; off: the
+        highest-Σν order's own placement, the thesis's rule (``merger.MergeParams.combine_orders``).
     correct_tol_deg, correct_tol_m : ground truth, not merger parameters: an accepted alignment is correct
         when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
@@ -193,6 +196,7 @@ class MergerSettings:
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
     ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
+    combine_orders: bool = True
     min_maps: int | None = None
     strategy: str = "orders"
     share_hypotheses: bool = False
@@ -361,6 +365,7 @@ _MERGER = section(MergerSettings, {
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
+    "combine_orders": boolean,
     "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),
     "strategy": choice("orders", "tree"), "share_hypotheses": boolean})
 _OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,

@@ -92,6 +92,9 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-refine", dest="refine", action="store_false",
                    help="report the search grid's answer (θ on the 0.1° grid, t in whole cells) without the "
                         "sub-cell refinement")
+    p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false",
+                   help="merge: keep the highest-Σν order's own placement (the thesis's rule) instead of the "
+                        "mean of the accepted orders that agree with it, verified")
     p.add_argument("--nu-min", type=float, default=d.nu_min,
                    help=f"verification threshold in [-1, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
@@ -155,7 +158,8 @@ def params_from(args) -> MergeParams:
         raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
     try:
         return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
-                           min_support=args.min_support, window_m=args.window, refine=args.refine)
+                           min_support=args.min_support, window_m=args.window, refine=args.refine,
+                           combine_orders=args.combine_orders)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
 
@@ -277,6 +281,8 @@ def merge_command(paths, centers, out, params: MergeParams | None = None) -> str
                       else str(getattr(params, key))]
     if params is not None and not params.refine:
         words.append("--no-refine")
+    if params is not None and not params.combine_orders:
+        words.append("--no-combine-orders")
     words += ["-o", str(out)]
     return " ".join(shlex.quote(w) for w in words)
 

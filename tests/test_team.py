@@ -43,6 +43,33 @@ def test_three_maps_merge_correctly(team_views):
     assert set(res.layers) == set(names)
 
 
+def test_accepted_orders_that_agree_are_combined_into_their_verified_mean(team_views):
+    """combine_orders (default): the chosen placement is the mean of the accepted orders within 10° and
+    0.2 m of the highest-Σν one, verified again on the whole maps; off, the thesis's highest-Σν order."""
+    import math
+
+    _, names, maps, truth = team_views
+    inputs = [MapInput(n, g, c) for n, (g, c) in zip(names, maps, strict=True)]
+    raw = merge_team(inputs, MergeParams(roi_m=8.0, combine_orders=False))
+    res = merge_team(inputs, MergeParams(roi_m=8.0))
+    assert raw.chosen.combined == () and raw.chosen.nu_sum == max(o.nu_sum for o in raw.orders if o.accepted)
+    agree = [o for o in raw.orders if o.accepted and all(
+        abs(angle_diff_deg(o.theta_deg[n], raw.chosen.theta_deg[n])) <= 10.0
+        and math.dist(o.translation(n), raw.chosen.translation(n)) <= 0.2 for n in names)]
+    assert len(agree) >= 2
+    c = res.chosen
+    assert c in res.orders and c.order == raw.chosen.order and c.combined == tuple(o.order for o in agree)
+    assert c.accepted and all(v.passed for v in c.checks.values()) and set(c.checks) == set(raw.chosen.checks)
+    for n in names:
+        mean = raw.chosen.theta_deg[n] + np.mean([angle_diff_deg(o.theta_deg[n], raw.chosen.theta_deg[n])
+                                                  for o in agree])
+        assert abs(angle_diff_deg(c.theta_deg[n], mean)) < 1e-9
+        assert np.allclose(c.translation(n), np.mean([o.translation(n) for o in agree], axis=0), atol=1e-12)
+        assert abs(angle_diff_deg(c.theta_deg[n], truth[n])) <= 1.0
+    assert c.to_dict()["combined"] == [list(o.order) for o in agree]
+    assert [o.order for o in res.orders] == [o.order for o in raw.orders]  # the other orders unchanged
+
+
 def test_rejections_carry_their_reason(team_views):
     _, names, maps, _ = team_views
     inputs = [MapInput(n, g, c) for n, (g, c) in zip(names, maps, strict=True)]

@@ -80,3 +80,13 @@ def test_thesis_scenes_first_merges_inside_the_thesis_band(name):
         assert m.first_merge_s is not None, robot
         assert 20.0 / 1.5 <= m.first_merge_s <= 30.0 * 1.5, (robot, m.first_merge_s)
         assert m.first_merge_arc_deg <= 90.0 * 1.5, (robot, m.first_merge_arc_deg)
+
+
+def test_agreeing_orders_combined_remove_the_sparse_maps_two_degree_false_merges():
+    """scene2-thesis, seed 11: with the thesis's rule (the highest Σν order) Lyon at 15.9 s and 19.0 s and
+    Nevers at 17.1 s accepted an order that put one sparse map 2.05° off (Σν 2.9051 vs the correct
+    order's 2.9050); the mean of the agreeing accepted orders places every map within the tolerance."""
+    sc = load_scenario(bundled_scenarios()["scene2-thesis"]).with_overrides(["duration_s=20", "seed=11"])
+    res = Simulation(sc).run()
+    assert res.false_merges == 0
+    assert all(m.first_merge_s is not None for m in res.robots.values())

@@ -2,18 +2,26 @@
 
 Run from the repository root::
 
-    python benchmarks/agree_window.py                  # 20 problems per kind (a few minutes)
-    python benchmarks/agree_window.py --n 50 --kinds views,sparse
+    python benchmarks/agree_window.py                  # 20 problems per kind and measure
+    python benchmarks/agree_window.py --n 50 --kinds views,sparse --measures similarity
+    python benchmarks/agree_window.py --small --n 100  # ROI 1.2–2.4 m, window 0.1–0.3 m: a cheap reference
     python benchmarks/agree_window.py --accuracy-n 40  # also: ROI 8 m, W 0.5 m, fast only, vs truth
 
-Problems are :func:`merger.synthetic.window_case`: a generated room seen in two frames (``views``), a
+Problem kinds: :func:`merger.synthetic.window_case` — a generated room seen in two frames (``views``), a
 point-symmetric room seen over a short arc (``symmetric``), pillars and boxes without walls in range
 (``sparse``), a view against itself (``identical``, plateaus) and random ternary grids (``noise``), each
-with the moving center off by up to 0.8 × the window on each axis; ROI 3.2–4.8 m and window 0.15–0.4 m
-so that the exhaustive reference ((2K+1)² translations × 360 angles, then 21 fine angles) stays cheap.
-"same": the fast method's grid answer (θ, t) and score equal the reference's (refinement off). The
-fast method is not exact by construction (its candidates come from an approximate polar stage); this
-script counts where it differs and how far its score is below the reference's.
+with the moving center off by up to 0.8 × the window on each axis; and two generated here:
+``near_empty`` (nearly blank maps: a handful of occupied cells, some free space or none) and
+``lattice`` (a map, or a random grid, against itself with both centers on cell corners or centres:
+lookups on cell borders, reference ROIs that are not plain blocks, whole plateaus of equal scores).
+ROI 3.2–4.8 m and window 0.15–0.4 m by default (``--small``: ROI 1.2–2.4 m, window 0.1–0.3 m), so that the
+exhaustive reference ((2K+1)² translations × 360 angles, then 21 fine angles) stays affordable.
+
+"same": the fast method's grid answer (θ, t), score and counts equal the reference's (refinement off),
+its profile is an upper envelope of the reference's, and its runner-up equals the reference's whenever
+that one scores within ``merger.window.RUNNER_UP_EXACT_GAP`` of the best coarse score (below it the
+fast runner-up is only a lower bound, and the reference's must lie below the gap too). The fast method is
+exact by construction (:mod:`merger.window`); this script checks it. Exit code 1 on any difference.
 
 ``--accuracy-n`` adds the issue's operating point (ROI 8 m, window 0.5 m, errors up to 0.4 m), fast with
 refinement, against ground truth: θ and t errors (problems whose best ROI score is the 180° alignment
@@ -33,24 +41,83 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
+from merger.grid import OccupancyGrid  # noqa: E402
 from merger.search import RotationProblem, angle_diff_deg, search  # noqa: E402
 from merger.synthetic import WINDOW_KINDS, window_case  # noqa: E402
+from merger.window import RUNNER_UP_EXACT_GAP  # noqa: E402
+
+MEASURES = ("similarity", "birk_carpin", "ncc")
+KINDS = (*WINDOW_KINDS, "near_empty", "lattice")
+SIZES = {"default": ((3.2, 4.8), (0.15, 0.4)), "small": ((1.2, 2.4), (0.1, 0.3))}
 
 
-def compare(seed: int, kind: str, measure: str) -> dict:
-    c = window_case(seed, kind)
-    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, measure,
-                        min(c.window_m, c.roi_m / 4))
+def problem(seed: int, kind: str, measure: str, size: str = "default") -> RotationProblem:
+    """The windowed problem ``seed`` of ``kind`` (see the module documentation) for ``measure``."""
+    roi_r, win_r = SIZES[size]
+    if kind in WINDOW_KINDS:
+        c = window_case(seed, kind, roi_m=roi_r, window_m=win_r)
+        return RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, measure,
+                               min(c.window_m, c.roi_m / 4))
+    rng = np.random.default_rng([seed, KINDS.index(kind), 11])
+    roi = float(rng.uniform(*roi_r))
+    win = min(float(rng.uniform(*win_r)), roi / 4)
+    if kind == "near_empty":
+        grids = []
+        for _ in range(2):
+            side = int(rng.integers(10, 90))
+            st = np.zeros((side, side), np.uint8)
+            if rng.random() < 0.8:
+                st[rng.random(st.shape) < rng.uniform(0, 0.6)] = 1
+            for _ in range(int(rng.integers(0, 7))):
+                st[rng.integers(0, side), rng.integers(0, side)] = 2
+            grids.append(OccupancyGrid(st, 0.05, (-side * 0.025, -side * 0.025)))
+        c = [tuple(float(v) for v in rng.uniform(-0.3, 0.3, 2)) for _ in range(2)]
+        return RotationProblem(grids[0], grids[1], c[0], c[1], roi, measure, win)
+    if kind == "lattice":
+        if rng.random() < 0.5:
+            g = window_case(seed, "identical", roi_m=roi_r, window_m=win_r).ref
+        else:
+            side = int(rng.integers(20, 90))
+            g = OccupancyGrid(rng.choice(3, size=(side, side), p=rng.dirichlet([1, 1, 1])).astype(np.uint8),
+                              0.05, (-side * 0.025, -side * 0.025))
+        step = 0.05 if rng.random() < 0.5 else 0.025  # cell corners, or corners and centres
+        x0, x1, y0, y1 = g.extent
+        cx = round(float(rng.uniform(x0 + 0.2 * (x1 - x0), x1 - 0.2 * (x1 - x0))) / step) * step
+        cy = round(float(rng.uniform(y0 + 0.2 * (y1 - y0), y1 - 0.2 * (y1 - y0))) / step) * step
+        return RotationProblem(g, g, (cx, cy), (cx, cy), roi, measure, win)
+    raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+
+
+def compare(seed: int, kind: str, measure: str, size: str = "default") -> dict:
+    """Both searches (refinement off) on problem ``seed`` of ``kind``: the differences found, if any."""
+    p = problem(seed, kind, measure, size)
     t0 = time.perf_counter()
     ref = search(p, "reference")
     t1 = time.perf_counter()
     fast = search(p, "fast")
     t2 = time.perf_counter()
-    same = (fast.theta_deg, fast.translation_m, fast.score) == (ref.theta_deg, ref.translation_m, ref.score)
-    return {"seed": seed, "kind": kind, "same": same, "gap": ref.score - fast.score,
+    diffs = []
+    if (fast.theta_deg, fast.translation_m, fast.cells, fast.score) != \
+            (ref.theta_deg, ref.translation_m, ref.cells, ref.score):
+        diffs.append("answer")
+    if fast.counts != ref.counts:
+        diffs.append("counts")
+    if not (fast.profile >= ref.profile).all():
+        diffs.append("profile not an upper envelope")
+    fr, rr = fast.runner_up, ref.runner_up
+    floor = float(ref.profile.max()) - RUNNER_UP_EXACT_GAP
+    if all(math.isnan(v) for v in rr):
+        ru_ok = all(math.isnan(v) for v in fr)
+    elif rr[1] >= floor:
+        ru_ok = fr == rr
+    else:  # below the gap: the fast runner-up is a lower bound, and says so by staying below it too
+        ru_ok = fr[1] <= rr[1] < floor
+    if not ru_ok:
+        diffs.append("runner-up")
+    return {"seed": seed, "kind": kind, "measure": measure, "diffs": diffs, "gap": ref.score - fast.score,
             "ref_ms": (t1 - t0) * 1e3, "fast_ms": (t2 - t1) * 1e3,
-            "ref": (ref.theta_deg, ref.translation_m, round(ref.score, 4)),
-            "fast": (fast.theta_deg, fast.translation_m, round(fast.score, 4))}
+            "ref": (ref.theta_deg, ref.translation_m, round(ref.score, 4), rr),
+            "fast": (fast.theta_deg, fast.translation_m, round(fast.score, 4), fr)}
 
 
 def accuracy(seed: int, kind: str) -> dict:
@@ -72,30 +139,36 @@ def q(values, p):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=20, help="problems per kind (default 20)")
-    ap.add_argument("--kinds", default=",".join(WINDOW_KINDS))
-    ap.add_argument("--measure", default="similarity", choices=("similarity", "birk_carpin", "ncc"))
+    ap.add_argument("--n", type=int, default=20, help="problems per kind and measure (default 20)")
+    ap.add_argument("--kinds", default=",".join(KINDS))
+    ap.add_argument("--measures", default=",".join(MEASURES), help="comma-separated subset of " + ", ".join(MEASURES))
+    ap.add_argument("--small", action="store_true", help="ROI 1.2–2.4 m, window 0.1–0.3 m (a cheaper reference)")
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--accuracy-n", type=int, default=0, help="problems per kind at ROI 8 m / W 0.5 m vs truth")
     args = ap.parse_args(argv)
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    if any(k not in WINDOW_KINDS for k in kinds) or args.n < 0:
-        ap.error(f"--kinds must be among {', '.join(WINDOW_KINDS)} and --n ≥ 0")
-    total = same_total = 0
+    measures = [m.strip() for m in args.measures.split(",") if m.strip()]
+    if any(k not in KINDS for k in kinds) or any(m not in MEASURES for m in measures) or args.n < 0:
+        ap.error(f"--kinds among {', '.join(KINDS)}, --measures among {', '.join(MEASURES)}, --n ≥ 0")
+    size = "small" if args.small else "default"
+    failures, total = [], 0
     if args.n:
-        print(f"fast vs reference, measure {args.measure}, refinement off (grid answers)")
-        print(f"{'kind':>10} {'problems':>8} {'same':>5} {'max score gap':>14} {'ref ms':>8} {'fast ms':>8}")
+        print(f"fast vs reference, refinement off (grid answers), sizes: {size}", flush=True)
+        print(f"{'kind':>10} {'measure':>12} {'problems':>8} {'same':>5} {'max score gap':>14} {'ref ms':>8} "
+              f"{'fast ms':>8}   (medians)", flush=True)
         for k in kinds:
-            rows = [compare(s, k, args.measure) for s in range(args.first_seed, args.first_seed + args.n)]
-            total += len(rows)
-            same_total += sum(r["same"] for r in rows)
-            print(f"{k:>10} {len(rows):>8} {sum(r['same'] for r in rows):>5} "
-                  f"{max(r['gap'] for r in rows):>14.4f} {statistics.median(r['ref_ms'] for r in rows):>8.0f} "
-                  f"{statistics.median(r['fast_ms'] for r in rows):>8.1f}")
-            for r in rows:
-                if not r["same"]:
-                    print(f"    differs: {k} seed {r['seed']}: fast {r['fast']} vs reference {r['ref']}")
-        print(f"same answer on {same_total}/{total}")
+            for m in measures:
+                rows = [compare(s, k, m, size) for s in range(args.first_seed, args.first_seed + args.n)]
+                total += len(rows)
+                failures += [r for r in rows if r["diffs"]]
+                print(f"{k:>10} {m:>12} {len(rows):>8} {sum(not r['diffs'] for r in rows):>5} "
+                      f"{max(r['gap'] for r in rows):>14.4f} {statistics.median(r['ref_ms'] for r in rows):>8.0f} "
+                      f"{statistics.median(r['fast_ms'] for r in rows):>8.1f}", flush=True)
+        print(f"total: {total - len(failures)} of {total} problems give the reference's answer; "
+              f"{len(failures)} differ")
+        for r in failures:
+            print(f"DIFF {r['kind']} seed {r['seed']} {r['measure']}: {', '.join(r['diffs'])}; fast (θ, t, score, "
+                  f"runner-up) {r['fast']} vs reference {r['ref']}")
     if args.accuracy_n:
         print()
         print("fast with refinement vs truth: ROI 8 m, window 0.5 m, moving center off by up to 0.4 m/axis")
@@ -111,7 +184,7 @@ def main(argv=None) -> int:
                   f"{max((r['grid_theta'] for r in ok), default=float('nan')):>10.2f} "
                   f"{max((r['grid_t'] for r in ok), default=float('nan')) * 100:>9.1f}c "
                   f"{statistics.median(r['ms'] for r in rows):>8.1f}")
-    return 0
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":

@@ -263,19 +263,22 @@ def _corr(ref_spec: np.ndarray, mov_spec: np.ndarray) -> np.ndarray:
     return r
 
 
-def _polar_boxes(x0, y0, size):
+def _polar_boxes(x0, y0, size, grow: float = 0.0):
     """Polar boxes of squares [x0, x0+size] × [y0, y0+size] (metres from the center): rmin, rmax (nearest
     and farthest point), and the angles (radians) ac ∓ asin(ρ/|c|) about the direction ac of the
     square's centre c, ρ = size/√2 its half-diagonal — every point of the square lies within ρ of c, so
-    within that angle of ac; the interval is set to ±π (the whole circle) when |c| ≤ ρ."""
+    within that angle of ac; the interval is set to ±π (the whole circle) when |c| ≤ ρ.
+
+    ``grow`` > 0: the polar boxes of the squares grown by a disk of that radius (every point within
+    ``grow`` of the square): radii widened by ``grow``, ρ by ``grow`` (:mod:`merger.window_bounds`)."""
     x1, y1 = x0 + size, y0 + size
     dx = np.maximum(np.maximum(x0, -x1), 0.0)
     dy = np.maximum(np.maximum(y0, -y1), 0.0)
-    rmin = np.hypot(dx, dy)
-    rmax = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1)))
+    rmin = np.maximum(np.hypot(dx, dy) - grow, 0.0)
+    rmax = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1))) + grow
     xc, yc = x0 + size / 2, y0 + size / 2
     ac = np.arctan2(yc, xc)
-    rho = size * math.sqrt(0.5)
+    rho = size * math.sqrt(0.5) + grow
     dc = np.hypot(xc, yc)
     with np.errstate(divide="ignore", invalid="ignore"):
         w = np.where(dc > rho * (1 + 1e-9), np.arcsin(np.minimum(rho / dc, 1.0)), math.pi)
@@ -284,6 +287,8 @@ def _polar_boxes(x0, y0, size):
 
 class SectorBounds:
     """Upper bounds of a problem's coarse scores at 0°, 1°, …, 359° (see the module documentation)."""
+
+    grow = 0.0  # the touching test's extra radius (metres; > 0 only in merger.window_bounds)
 
     def __init__(self, problem: RotationProblem, ref_roi: np.ndarray, sx: int, occ_idx=None) -> None:
         self.problem = problem
@@ -332,7 +337,7 @@ class SectorBounds:
         size = crop.shape[0]
         # a map is the moving map of several searches of a merge cycle: its sector spectra are kept, keyed
         # by the geometry and a cheap sample of the crop, and served only if the whole crop is equal
-        key = (lay.n, lay.res, lay.wb, q, self.measure, mres, cmx - mov.origin[0] - c0 * mres,
+        key = (lay.n, lay.res, lay.wb, q, self.measure, self.grow, mres, cmx - mov.origin[0] - c0 * mres,
                cmy - mov.origin[1] - r0 * mres, size, hash(crop[::5, ::3].tobytes()))
         hit = _MOVING_CACHE.get(key)
         if hit is not None and np.array_equal(hit[0], crop):
@@ -405,7 +410,7 @@ class SectorBounds:
             return [np.zeros(lay.total, bool) for _ in sets]
         owner = np.repeat(np.arange(k) * total, [c.size for c in cells_of])
         r, c = np.divmod(cells, size)
-        rmin, rmax, lo, hi = _polar_boxes(xs[c], ys[r], mres)
+        rmin, rmax, lo, hi = _polar_boxes(xs[c], ys[r], mres, self.grow)
         dr = _DELTA_CELL * mres
         nb = len(lay.bins)
         i0 = np.maximum(np.ceil((rmin - dr) / lay.wb).astype(np.int64) - 1, 0)

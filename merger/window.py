@@ -555,8 +555,10 @@ class _Climber:
 
 
 def fast_window_search(problem):
-    """The fast rotation × translation search (see the module documentation)."""
-    from .search import Alignment, fine_angles, runner_up, wrap_deg
+    """The fast rotation × translation search: exactly the reference's grid answer (see the module
+    documentation)."""
+    from .search import RUNNER_UP_MIN_SEPARATION_DEG, Alignment, angle_diff_deg, fine_angles, wrap_deg
+    from .window_bounds import Certifier
 
     k = problem.window_cells
     ts_c, table, pool = approximate_window_table(problem, k)
@@ -568,7 +570,8 @@ def fast_window_search(problem):
         end = climber.climb(th0, (a0, b0), max(1, pool // 2))  # first look: the pooled cell around the start
         if end is not None:
             ends.append(end)
-    best = max(ends, key=lambda e: e[0])
+    cert = Certifier(problem, ev, climber.rank)
+    best = cert.run(max(ends, key=lambda e: e[0]))  # the incumbent certified, or beaten
     _, th_c, tc = best
     sub = problem.at(*tc)
     sev = SparseEvaluator(sub)
@@ -576,17 +579,52 @@ def fast_window_search(problem):
     values = sev.scores(fine)
     kf = int(np.argmax(values))
     theta = wrap_deg(fine[kf])
-    profile = table.max(axis=0)
-    for x, tab in ev.values.items():
-        if float(x).is_integer() and not np.isnan(tab).all():
-            profile[int(x)] = np.nanmax(tab)
+    profile = cert.env.copy()
+    lock = threading.Lock()  # the deferred runner-up shares the evaluator, which is not thread-safe
+
+    def runner_up():
+        far = np.abs(angle_diff_deg(np.arange(360.0), theta)) >= RUNNER_UP_MIN_SEPARATION_DEG
+        if not far.any():
+            return float("nan"), float("nan")
+        with lock:
+            return _window_runner_up(cert, climber, ts_c, table, pool, far, best[0][0] - RUNNER_UP_EXACT_GAP)
+
     best_value = best[0][0]
     al = Alignment(theta, float(values[kf]), lambda: sev.similarity(fine[kf]).counts, problem.measure,
-                   "fast", problem.roi_m, profile, lambda: runner_up(profile, theta),
+                   "fast", problem.roi_m, profile, runner_up,
                    window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,
                    fine=(np.asarray(fine), np.asarray(values, np.float64)),
                    _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)))
     return refine_alignment(problem, al, ev) if problem.refine else al
+
+
+RUNNER_UP_STARTS = 2  # approximate peaks among the far angles climbed for the runner-up's first incumbent
+RUNNER_UP_EXACT_GAP = 0.15  # the runner-up is exact when it scores within this of the best coarse score
+
+
+def _window_runner_up(cert, climber, ts, table, pool, far: np.ndarray, floor: float) -> tuple[float, float]:
+    """The reference's runner-up — the first maximum over the coarse angles ``far`` (at least 10° from θ)
+    of the best value over the window's translations — exactly when it reaches ``floor``. Climbs from
+    the approximate table's best far peaks give a first incumbent; the certifier (ties: the smallest
+    angle) then finds the best, skipping every region whose bound is below ``floor``: when the runner-up
+    scores less, the result is the best far alignment evaluated (its score a lower bound, the exact one
+    below ``floor``)."""
+    ev = climber.ev
+    sub = np.where(far[None, :], table, -np.inf)
+    for th, a, b in _peaks(ts, sub, pool, RUNNER_UP_STARTS):
+        if far[th]:
+            climber.climb(th, (a, b), max(1, pool // 2))
+    inc = ((-math.inf, 0, 0), None, None)
+    for x, tab in ev.values.items():
+        tab = tab[1:-1, 1:-1]  # the window (the evaluator reaches one cell beyond)
+        if float(x).is_integer() and 0 <= x < 360 and far[int(x)] and not np.isnan(tab).all():
+            key = (float(np.nanmax(tab)), 0, -int(x))
+            if key > inc[0]:
+                inc = (key, int(x), None)
+    (v, _, _), th, _ = cert.run(inc, far, use_rank=False, floor=floor)
+    if th is None:
+        return float("nan"), float("nan")
+    return float(th), float(v)
 
 
 BEYOND_FACTOR = 2.0  # the guard looks for better alignments up to this × the window ...

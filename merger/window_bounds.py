@@ -1,0 +1,382 @@
+"""True upper bounds of a windowed problem's coarse scores over (every angle) × (a box of translations).
+
+See :mod:`merger.window` (the search that uses them) for the argument why each bound holds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from .fast import SectorBounds, _corr, _hist, _ncc_upper, _row_spectra, sector_grain, sector_layout
+from .grid import FREE_S, OCCUPIED_S
+from .sparse import ncc_from_sums
+
+SECTOR_HALF = 1  # the sector stage's boxes: 3 × 3 translations (fewer boxes leave many more angles)
+_GROW_SLACK = 1e-7  # cells added to a box's displacement radius (≫ every rounding error of the lookups)
+
+
+class BoxBounds:
+    """Upper bounds of v(θ, t) for θ = 0°, 1°, …, 359° and t in a box of translations, for one windowed
+    problem (its :class:`merger.window.WindowEvaluator` ``ev`` supplies the reference's ROI geometry).
+
+    A box is ``(a_c, b_c, s_a, s_b)``: translations (a, b) cells with |a − a_c| ≤ s_a, |b − b_c| ≤ s_b.
+    """
+
+    def __init__(self, problem, ev) -> None:
+        self.problem, self.ev = problem, ev
+        n, k = problem.n, problem.window_cells
+        self.n, self.k, self.res = n, k, problem.ref.resolution
+        self.big = big = n + 2 * k  # the lattice of the whole window about its center (parity of n)
+        self.lay = sector_layout(big, self.res, sector_grain(n))
+        self.measure = problem.measure
+        self._mov: dict[float, dict] = {}
+        (cols_t, cb, cf, _), (rows_t, rb, rf, _) = ev._axes_table()
+        self.reach = ev.reach
+        self.cb, self.cf, self.rb, self.rf = cb, cf, rb, rf
+        pad = ev._pad
+        # the padded reference's cells that any box's union of ROIs can hold
+        r0, r1 = int(rf.min()) - k, int(rf.max()) + n + k
+        c0, c1 = int(cf.min()) - k, int(cf.max()) + n + k
+        hp, wp = pad.shape
+        sub = pad[max(r0, 0):max(min(r1, hp), 0), max(c0, 0):max(min(c1, wp), 0)]
+        oy, ox = max(r0, 0), max(c0, 0)
+        r, c = np.nonzero(sub == OCCUPIED_S)
+        self.occ = (r + oy, c + ox)
+        if self.measure == "birk_carpin":
+            r, c = np.nonzero(sub == FREE_S)
+            self.free = (r + oy, c + ox)
+        if self.measure == "ncc":
+            # Σy does not depend on t: bounds from the ROI lattice (the big layout's central block)
+            i, j = np.divmod(np.arange(n * n), n)
+            allp = (i + k) * big + (j + k)
+            self._n_all = _row_spectra(self.lay, _hist(self.lay, allp))
+            # Σx(t) = the reference-occupied cells of ROI(t), exactly: a summed-area table of the padded grid
+            occ = (pad == OCCUPIED_S).astype(np.int64)
+            self._sat = np.zeros((hp + 1, wp + 1), np.int64)
+            self._sat[1:, 1:] = occ.cumsum(0).cumsum(1)
+
+    # --- the moving map's sector classes, grown by a displacement radius -------------------------------
+    def _moving(self, grow_cells: float) -> dict:
+        key = float(grow_cells)
+        hit = self._mov.get(key)
+        if hit is None:
+            sb = SectorBounds.__new__(SectorBounds)
+            sb.lay, sb.measure, sb.problem = self.lay, self.measure, self.problem
+            sb.grow = (grow_cells + _GROW_SLACK) * self.res if grow_cells > 0 else 0.0
+            hit = self._mov[key] = sb._moving_sectors(self.problem)
+        return hit
+
+    # --- the reference side -----------------------------------------------------------------------------
+    def consistent(self, box) -> bool:
+        """Whether every ROI of the box is a plain block of the padded reference, shifted by whole cells
+        with the translation (then the box's ROIs are sub-blocks of one lattice)."""
+        a_c, b_c, s_a, s_b = box
+        kk = self.reach
+        for c, s, blk, first in ((a_c, s_a, self.cb, self.cf), (b_c, s_b, self.rb, self.rf)):
+            idx = np.arange(c - s, c + s + 1) + kk
+            if not blk[idx].all() or not (np.diff(first[idx]) == 1).all():
+                return False
+        return True
+
+    def _ids(self, pts, box, inner: bool):
+        """Big-layout sector ids of the reference cells ``pts`` in the box's union of ROIs (``inner``:
+        in the intersection of its ROIs), placed about the box's center."""
+        a_c, b_c, s_a, s_b = box
+        kk, n, k = self.reach, self.n, self.k
+        rr = pts[0] - (int(self.rf[b_c + kk]) - k)  # rows of the big lattice about c_ref + t_c
+        cc = pts[1] - (int(self.cf[a_c + kk]) - k)
+        if inner:
+            ok = (rr >= k + s_b) & (rr < k + n - s_b) & (cc >= k + s_a) & (cc < k + n - s_a)
+        else:
+            ok = (rr >= k - s_b) & (rr < k + n + s_b) & (cc >= k - s_a) & (cc < k + n + s_a)
+        return rr[ok] * self.big + cc[ok]
+
+    def _hist_spec(self, ids_list):
+        return _row_spectra(self.lay, np.stack([_hist(self.lay, ids) for ids in ids_list]))
+
+    def sx_values(self, a0: int, a1: int, b0: int, b1: int) -> np.ndarray:
+        """The distinct values over a consistent box [a0, a1] × [b0, b1] of Σx(t), the reference-occupied
+        cells of ROI(t) (NCC), exactly (a summed-area table of the padded reference)."""
+        kk, n = self.reach, self.n
+        r = self.rf[np.arange(b0, b1 + 1) + kk].astype(np.intp)
+        c = self.cf[np.arange(a0, a1 + 1) + kk].astype(np.intp)
+        sat = self._sat
+        v = sat[r[:, None] + n, c[None, :] + n] - sat[r[:, None], c[None, :] + n] \
+            - sat[r[:, None] + n, c[None, :]] + sat[r[:, None], c[None, :]]
+        return np.unique(v)
+
+    def bounds(self, box) -> np.ndarray:
+        """Upper bounds of max_{t in box} v(θ, t) for θ = 0..359 (the box must be :meth:`consistent`)."""
+        a_c, b_c, s_a, s_b = box
+        grow = math.hypot(s_a, s_b)
+        mov = self._moving(grow)
+        m = self.measure
+        if m == "ncc":
+            (h_occ,) = self._hist_spec([self._ids(self.occ, box, False)])
+            a = _corr(h_occ, mov["may_occ"])
+            m0 = self._moving(0.0)
+            y_hi = _corr(self._n_all, m0["may_occ"])
+            y_lo = _corr(self._n_all, m0["sure_occ"]) if "sure_occ" in m0 else np.zeros(360)
+            out = np.zeros(360)
+            for sx in self.sx_values(a_c - s_a, a_c + s_a, b_c - s_b, b_c + s_b).tolist():
+                np.maximum(out, _ncc_upper(a, y_lo, y_hi, self.n * self.n, int(sx)), out=out)
+            return out
+        ids = [self._ids(self.occ, box, False), self._ids(self.occ, box, True)]
+        if m == "birk_carpin":
+            ids += [self._ids(self.free, box, False), self._ids(self.free, box, True)]
+        spec = self._hist_spec(ids)
+        a = _corr(spec[0], mov["may_occ"])
+        d = _corr(spec[1], mov["sure_free"])
+        if m == "birk_carpin":
+            if "sure_occ" in mov:
+                d = d + _corr(spec[3], mov["sure_occ"])
+            a = a + _corr(spec[2], mov["may_free"])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(a > 0, a / (a + d), 0.0)
+
+
+
+
+
+
+# --- branch and bound over (angle, box of translations) -------------------------------------------
+def odd_parts(lo: int, hi: int, size: int) -> list[tuple[int, int]]:
+    """[lo, hi] (an odd number of cells) cut into an odd number of consecutive runs of odd lengths, at
+    most ``size`` long where possible, as (center, half-length) pairs."""
+    length = hi - lo + 1
+    m = min(max(1, -(-length // size)) | 1, length)  # odd: odd lengths summing to an odd total
+    sizes = [1] * m
+    for i in range((length - m) // 2):
+        sizes[i % m] += 2
+    sizes.sort(key=lambda x: -x)  # longest first, then keep the runs symmetric about the middle
+    order = sorted(range(m), key=lambda i: abs(i - m // 2), reverse=True)
+    lengths = [0] * m
+    for i, x in zip(order, sizes, strict=True):
+        lengths[i] = x
+    out, a = [], lo
+    for x in lengths:
+        out.append((a + x // 2, x // 2))
+        a += x
+    return out
+
+
+class Certifier:
+    """Branch and bound over (coarse angle, box of translations) for a windowed problem: the best grid
+    alignment in the reference's order, exactly (see :mod:`merger.window`, "exact by construction").
+
+    ``rank`` is the reference's tie order over translations (``(2K+1, 2K+1)`` by (b + K, a + K)); with
+    ``use_rank=False`` ties go to the smallest angle only (the runner-up's order). Every exact value comes
+    from the evaluator ``ev``; bounds prune only where they show that a region cannot beat — or tie in
+    the order — the best alignment evaluated so far (the *incumbent*).
+    """
+
+    def __init__(self, problem, ev, rank: np.ndarray) -> None:
+        self.problem, self.ev, self.rank = problem, ev, rank
+        self.k = problem.window_cells
+        self.n = problem.n
+        self.sectors = BoxBounds(problem, ev)
+        self._sector_cache: dict = {}
+        self._pooled: dict = {}
+        self._free_pts: dict = {}
+        ev._occupied_cells()
+        # per axis: whether translation index i's ROI is a plain block, and the prefix counts of the indices
+        # whose block continues the previous one by exactly one cell (see _consistent)
+        self._steps = []
+        for blk, first in ((self.sectors.cb, self.sectors.cf), (self.sectors.rb, self.sectors.rf)):
+            g = np.zeros(blk.size, np.int64)
+            g[1:] = blk[1:] & blk[:-1] & (np.diff(first) == 1)
+            self._steps.append((blk.tolist(), np.concatenate([[0], np.cumsum(g)]).tolist()))
+        self.env = np.full(360, -np.inf)  # per angle: an upper bound of the best value (the profile)
+        self.stats = {"sector_boxes": 0, "angles": 0, "boxes": 0, "leaves": 0}
+
+    # --- keys: (value, −rank, −θ), compared as tuples ----------------------------------------------
+    def _minrank(self, a0, a1, b0, b1) -> int:
+        k = self.k
+        return int(self.rank[b0 + k:b1 + k + 1, a0 + k:a1 + k + 1].min()) if self.use_rank else 0
+
+    def _can_win(self, ub, r, theta) -> np.ndarray:
+        """Whether a region whose values are ≤ ``ub`` (per angle ``theta``) and whose translations rank at
+        best ``r`` may hold an alignment that comes before the incumbent in the reference's order (and
+        reaches the floor)."""
+        v, nr, nth = self.best[0]
+        win = (ub > v) | ((ub == v) & ((-r > nr) | ((-r == nr) & (-np.asarray(theta) > nth))))
+        return win & (ub >= self.floor)
+
+    def _wins(self, ub: float, r: int, theta: int) -> bool:
+        """:meth:`_can_win` for one region (Python scalars)."""
+        return ub >= self.floor and (ub, -r, -theta) > self.best[0]
+
+    def _offer(self, theta: int, a, b, vals) -> None:
+        """Exact values at (θ, (a[i], b[i])): the incumbent becomes the best of them if it comes first."""
+        k = self.k
+        vals = np.asarray(vals, np.float64)
+        np.maximum.at(self.env, theta, vals.max(initial=-np.inf))
+        r = self.rank[np.asarray(b) + k, np.asarray(a) + k] if self.use_rank else np.zeros(len(vals), np.int64)
+        j = int(np.lexsort((r, -vals))[0])
+        key = (float(vals[j]), -int(r[j]), -int(theta))
+        if key > self.best[0]:
+            self.best = (key, int(theta), (int(a[j]), int(b[j])))
+
+    # --- stage A: sector bounds for all angles over boxes of translations --------------------------
+    def _sector(self, box) -> np.ndarray:
+        hit = self._sector_cache.get(box)
+        if hit is None:
+            a_c, b_c, s_a, s_b = box
+            if self.sectors.consistent(box):
+                hit = self.sectors.bounds(box)
+                self.stats["sector_boxes"] += 1
+            else:
+                hit = np.full(360, np.inf)
+            self._sector_cache[box] = hit
+        return hit
+
+    def run(self, best, allowed: np.ndarray | None = None, use_rank: bool = True, floor: float = -np.inf):
+        """The best (key, θ, (a, b)) over the allowed coarse angles and every translation, starting from
+        the incumbent ``best`` = (key, θ, t) (an exact evaluation, or key (−inf, 0, 0) with θ, t None).
+
+        With a ``floor`` the search skips every region whose bound is below it: the answer is exact when
+        its value reaches the floor; otherwise every value is below the floor and the answer is only the
+        best one evaluated."""
+        self.best, self.use_rank, self.floor = best, use_rank, floor
+        allowed = np.ones(360, bool) if allowed is None else allowed
+        k = self.k
+        thetas = np.arange(360)
+        todo: dict[int, list] = {}  # angle -> boxes (a0, a1, b0, b1) to search with its exact rotation
+        top: dict[int, float] = {}
+        parts = odd_parts(-k, k, 2 * SECTOR_HALF + 1)
+        boxes = [(ac, bc, sa, sb) for bc, sb in parts for ac, sa in parts]
+        while boxes:
+            box = boxes.pop()
+            a_c, b_c, s_a, s_b = box
+            if (s_a or s_b) and not self.sectors.consistent(box):  # (float ties in the lattice) one by one
+                boxes += [(a, b, 0, 0) for b in range(b_c - s_b, b_c + s_b + 1)
+                          for a in range(a_c - s_a, a_c + s_a + 1)]
+                continue
+            rect = (a_c - s_a, a_c + s_a, b_c - s_b, b_c + s_b)
+            ub = self._sector(box)
+            alive = allowed & self._can_win(ub, self._minrank(*rect), thetas)
+            dead = allowed & ~alive
+            self.env[dead] = np.maximum(self.env[dead], ub[dead])
+            for th in np.flatnonzero(alive).tolist():
+                todo.setdefault(th, []).append(rect)
+                top[th] = max(top.get(th, -np.inf), float(ub[th]))
+        # --- stage B: per angle, its exact rotated ROI and pooled references over the boxes ---------
+        for th in sorted(todo, key=lambda t: -top[t]):
+            self._angle(th, todo[th])
+        return self.best
+
+    # --- stage B: translation boxes at one angle, Cartographer's bounds -----------------------------
+    def _pool(self, hb: int, ha: int):
+        """The padded reference pooled over every offset of an hb × ha box of translations (first block
+        corner at the cell): max of occupied (and of free), min of free and of occupied (as cells of the
+        evaluator's reference-occupied image)."""
+        key = (hb, ha)
+        hit = self._pooled.get(key)
+        if hit is None:
+            ev = self.ev
+            pad = ev._pad
+            kern = np.ones((hb, ha), np.uint8)
+            occ = (pad == OCCUPIED_S).view(np.uint8)
+            free = (pad == FREE_S).view(np.uint8)
+
+            def dil(x):
+                return cv2.dilate(x, kern, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+
+            def ero(x):
+                return cv2.erode(x, kern, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+
+            max_occ = dil(occ).reshape(-1).astype(bool)
+            min_free = ero(free).reshape(-1).astype(bool)
+            max_free = dil(free).reshape(-1).astype(bool) if self.problem.measure == "birk_carpin" else None
+            # cells occupied for every offset, in the evaluator's moving-free image coordinates
+            min_occ = ero(occ)
+            (_, _, cf, _), (_, _, rf, _) = ev._axes_table()
+            n, m = self.n, ev._margin
+            r0, r1 = int(rf.min()), int(rf.max()) + n
+            c0, c1 = int(cf.min()), int(cf.max()) + n
+            hp, wp = pad.shape
+            sub = min_occ[max(r0, 0):max(min(r1, hp), 0), max(c0, 0):max(min(c1, wp), 0)]
+            qr, qc = np.nonzero(sub)
+            q = (qr + max(r0, 0)) * (n + 2 * m) + (qc + max(c0, 0))
+            hit = self._pooled[key] = (max_occ, min_free, max_free, q)
+        return hit
+
+    def _consistent(self, a0, a1, b0, b1) -> bool:
+        """Whether the ROIs of the box [a0, a1] × [b0, b1] are plain blocks, each one cell on from the
+        previous (as :meth:`BoxBounds.consistent`)."""
+        kk = self.sectors.reach
+        for lo, hi, (blk, cum) in ((a0 + kk, a1 + kk, self._steps[0]), (b0 + kk, b1 + kk, self._steps[1])):
+            if not blk[lo] or cum[hi + 1] - cum[lo + 1] != hi - lo:
+                return False
+        return True
+
+    def _rect_bound(self, theta: float, rect) -> float:
+        """An upper bound of v(θ, t) over the consistent box ``rect``, with θ's exact rotated ROI."""
+        a0, a1, b0, b1 = rect
+        ev, s = self.ev, self.sectors
+        kk = s.reach
+        max_occ, min_free, max_free, q = self._pool(b1 - b0 + 1, a1 - a0 + 1)
+        (_, _, pflat), mfp, mov = ev._mov[theta]
+        r, c = int(s.rf[b0 + kk]), int(s.cf[a0 + kk])
+        base = r * ev._pad.shape[1] + c
+        idx = pflat + base
+        agr = int(np.count_nonzero(max_occ[idx]))
+        measure = self.problem.measure
+        if measure == "ncc":
+            sy = float(pflat.size)
+            return max(ncc_from_sums(self.n * self.n, float(sx), sy, float(agr))
+                       for sx in s.sx_values(a0, a1, b0, b1).tolist())
+        m = ev._margin
+        dis = int(np.count_nonzero(min_free[idx]))
+        if q.size:
+            dis += int(np.count_nonzero(mfp[q - ((r - m) * (self.n + 2 * m) + (c - m))]))
+        if measure == "birk_carpin":
+            fp = self._free_pts.get(theta)
+            if fp is None:
+                fi, fj = np.divmod(np.flatnonzero(mov == FREE_S), self.n)
+                fp = self._free_pts[theta] = fi * ev._pad.shape[1] + fj
+            agr += int(np.count_nonzero(max_free[fp + base]))
+        return agr / (agr + dis) if agr + dis else 0.0
+
+    def _angle(self, th: int, rects) -> None:
+        """Every translation of ``rects`` at the coarse angle θ, by branch and bound on boxes."""
+        theta = float(th)
+        self.ev.moving([theta])
+        self.stats["angles"] += 1
+        stack = list(rects)
+        while stack:
+            leaves_a, leaves_b, nxt = [], [], []
+            for rect in stack:
+                a0, a1, b0, b1 = rect
+                if (a1 - a0 + 1) * (b1 - b0 + 1) <= 2 or not self._consistent(*rect):
+                    if (a0, b0) == (a1, b1) or (a1 - a0 + 1) * (b1 - b0 + 1) <= 2:
+                        for b in range(b0, b1 + 1):
+                            for a in range(a0, a1 + 1):
+                                leaves_a.append(a)
+                                leaves_b.append(b)
+                        continue
+                    nxt += _halves(rect)
+                    continue
+                ub = self._rect_bound(theta, rect)
+                self.stats["boxes"] += 1
+                if self._wins(ub, self._minrank(*rect), th):
+                    nxt += _halves(rect)
+                else:
+                    self.env[th] = max(self.env[th], ub)
+            if leaves_a:
+                a, b = np.array(leaves_a, np.intp), np.array(leaves_b, np.intp)
+                self.stats["leaves"] += a.size
+                self._offer(th, a, b, self.ev.evaluate_ab(theta, a, b))
+            stack = nxt
+
+
+def _halves(rect):
+    """A box cut in two along each axis longer than one cell (2 or 4 boxes)."""
+    a0, a1, b0, b1 = rect
+    am, bm = (a0 + a1) // 2, (b0 + b1) // 2
+    xs = [(a0, am), (am + 1, a1)] if a1 > a0 else [(a0, a1)]
+    ys = [(b0, bm), (bm + 1, b1)] if b1 > b0 else [(b0, b1)]
+    return [(x0, x1, y0, y1) for y0, y1 in ys for x0, x1 in xs]

@@ -1,7 +1,9 @@
 """Ambiguous pairs: a pair's best alignment and its runner-up score alike (issue 10, item 5).
 
 A search answers the best (θ, t) on the region of interest; its runner-up (:attr:`Alignment.runner_up`,
-the best coarse angle more than 10° away) is a rival. In a point-symmetric neighbourhood of the center
+the best coarse angle more than 10° away) is a rival, and so, with a translation window, is the best
+placement at the same angle (±1°) more than 0.2 m away (:func:`shift_rival`); the higher-scoring of
+the two is the pair's runner-up. In a point-symmetric neighbourhood of the center
 the two peaks are the truth and its half turn, and the ROI cannot tell them apart. A pair is
 *ambiguous* when the runner-up's exact score (:func:`rival`: the runner-up's best translation in the
 window and its fine angle) is within the margin of the best's score. Whole-map evidence then decides
@@ -30,6 +32,7 @@ from .search import (
 )
 from .verify import Verification
 
+RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.AMBIGUOUS_M)
 PREFILTER_SLACK = 0.05  # the profile's runner-up score can be approximate (the fast search's polar
 # stage): a pair is examined exactly when that score is within margin + this of the best
 RIVAL_SPAN_DEG = 2  # the exact runner-up is the best coarse angle within ± this of the profile's
@@ -152,6 +155,53 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
     return refine_alignment(problem, out, ev) if problem.refine else out
 
 
+def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment | None:
+    """The best alignment at the best's angle (±1° coarse) whose translation lies more than 0.2 m from the
+    best's, as an exact alignment, when it scores within ``margin`` of ``al`` on the ROI (None otherwise,
+    without a window, or when ``margin`` ≤ 0).
+
+    The angle rival (:func:`rival`) misses a rival at the same angle: with sparse maps and a window, a map
+    shifted along its walls keeps a high ω̃ on fewer overlapping cells. On scene2-thesis (seed 1, centers
+    off by 5 cm, W = 0.5 m) Lyon onto the superposition of its teammates scored 0.970 at t = (−0.48, +0.38) m,
+    the window's edge, on 236 cells, and 0.941 at the truth (2, 1 cells) on 476; the shifted placement
+    passed whole-map verification (ν 0.79 and 0.85) and was a false merge in three cycles. As a rival, the
+    truth's whole-map ν decides. Its fine angle (0.1° over ±1°) and sub-cell refinement follow the search's."""
+    from .window import WindowEvaluator, beyond_window, reference_beyond, refine_alignment
+
+    k = problem.window_cells
+    if margin <= 0 or k == 0:
+        return None
+    ev = WindowEvaluator(problem)
+    a0 = problem.offset_m(*al.cells)
+    far = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)
+           if math.dist(problem.offset_m(a, b), a0) > RIVAL_SHIFT_M]
+    if not far:
+        return None
+    th0 = int(round(al.theta_grid_deg)) % 360
+    top = None
+    for d in (0, -1, 1):
+        th = float((th0 + d) % 360)
+        vals = ev.evaluate(th, far)
+        i = int(np.argmax(vals))
+        if top is None or vals[i] > top[0]:
+            top = (float(vals[i]), th, far[i])
+    top_value, th_c, tc = top
+    if al.score - top_value >= margin + PREFILTER_SLACK:
+        return None
+    angles = fine_angles(th_c)
+    vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
+    kf = int(np.argmax(vals))
+    theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
+    if al.score - score >= margin:
+        return None
+    guard = reference_beyond if al.method == "reference" else beyond_window
+    out = Alignment(theta, score, ev.counts(float(angles[kf]), tc), al.measure, al.method, al.roi_m, al.profile,
+                    (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
+                    cells=tc, fine=(np.asarray(angles, np.float64), vals),
+                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)))
+    return refine_alignment(problem, out, ev) if problem.refine else out
+
+
 def verdict(nu_best: float, nu_runner_up: float, margin: float) -> str:
     """Which hypothesis whole-map evidence separates from the other by at least ``margin``."""
     if nu_best - nu_runner_up >= margin:
@@ -169,9 +219,10 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
     and unresolved the best alignment is returned with the record, whose ``used``
     is False: the caller does not use the pair."""
-    riv = rival(problem, al, margin)
-    if riv is None:
+    rivals = [r for r in (rival(problem, al, margin), shift_rival(problem, al, margin)) if r is not None]
+    if not rivals:
         return al, None
+    riv = max(rivals, key=lambda r: r.score)  # the first (the angle rival) of equal scores
     vb, vr = nu_of(al), nu_of(riv)
     if not (vb.passed or vr.passed):  # neither is a merge: the pair fails on its own evidence
         return al, None

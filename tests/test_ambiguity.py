@@ -156,3 +156,63 @@ def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
     assert len(amb) == 1, ev
     assert f"θ {a.best.theta_deg:.1f}°" in amb[0] and f"θ {a.runner_up.theta_deg:.1f}°" in amb[0]
     assert "not used" in amb[0]
+
+
+def _pattern_grids(shift_cells: int):
+    """A reference with the same asymmetric cluster twice, ``shift_cells`` apart along x (free around),
+    and a moving map holding one copy (nothing else known), both 80 × 80 cells of 5 cm, centers at the
+    grids' middles; the moving copy sits 4 cells left of the reference's first copy."""
+    from merger.grid import OccupancyGrid
+
+    pattern = [(0, 0), (0, 1), (0, 2), (0, 3), (1, 0), (2, 0), (3, 0), (5, 2), (2, 5), (6, 6)]
+    ref = np.full((80, 80), 1, np.uint8)
+    mov = np.zeros((80, 80), np.uint8)
+    for r, c in pattern:
+        ref[50 + r, 44 + c] = ref[50 + r, 44 + shift_cells + c] = 2
+        mov[50 + r, 40 + c] = 2
+    return OccupancyGrid(ref, 0.05, (-2.0, -2.0)), OccupancyGrid(mov, 0.05, (-2.0, -2.0))
+
+
+def test_a_rival_at_the_same_angle_but_another_translation_is_weighed_by_whole_map_evidence():
+    """Two equally good translations 0.35 m apart at the same angle (the angle rival cannot see them): the
+    search returns the one nearer the given center, :func:`shift_rival` the other, exactly; resolve() lets
+    whole-map ν choose — and without a window there is no translation rival."""
+    from merger.ambiguity import resolve, shift_rival
+    from merger.search import RotationProblem, search
+    from merger.similarity import Counts
+    from merger.verify import Verification
+
+    ref, mov = _pattern_grids(7)
+    prob = RotationProblem(ref, mov, (0.0, 0.0), (0.0, 0.0), 3.0, "similarity", 0.5, False)
+    al = search(prob, "fast")
+    # a small cluster: every angle within a few degrees puts its cells on the copy (a plateau of 1.0)
+    assert al.score == 1.0 and abs(angle_diff_deg(al.theta_deg, 0.0)) <= 5.0
+    assert abs(al.translation_m[0] - 0.2) <= 0.051 and abs(al.translation_m[1]) <= 0.051  # the nearer copy
+    riv = shift_rival(prob, al, 0.05)
+    assert riv is not None and riv.score == 1.0 and abs(angle_diff_deg(riv.theta_deg, al.theta_deg)) <= 2.0
+    # the other copy, 7 cells (0.35 m) further along x, within a cell
+    assert abs(riv.translation_m[0] - al.translation_m[0] - 0.35) <= 0.051 and abs(riv.translation_m[1]) <= 0.051
+    assert riv.counts == prob.at(*riv.cells).evaluate(riv.theta_deg).counts  # exact, as the search's own
+
+    def nu_of(a):  # whole-map evidence that prefers the far copy
+        nu = 0.9 if a.translation_m[0] > 0.4 else 0.6
+        return Verification(nu, Counts(500, 10), True)
+
+    chosen, amb = resolve(prob, al, 0.05, nu_of, "ref", "mov")
+    assert amb is not None and amb.verdict == "runner_up"
+    assert chosen.translation_m == riv.translation_m and chosen.theta_deg == riv.theta_deg
+    assert shift_rival(prob, al, 0.0) is None
+    flat = RotationProblem(ref, mov, (0.0, 0.0), (0.0, 0.0), 3.0, "similarity", 0.0, False)
+    assert shift_rival(flat, search(flat, "fast"), 0.05) is None
+
+
+def test_a_single_copy_has_no_translation_rival():
+    """With one copy in the reference, every translation more than 0.2 m away scores far below the best."""
+    from merger.ambiguity import shift_rival
+    from merger.search import RotationProblem, search
+
+    ref, mov = _pattern_grids(0)
+    prob = RotationProblem(ref, mov, (0.0, 0.0), (0.0, 0.0), 3.0, "similarity", 0.5, False)
+    al = search(prob, "fast")
+    assert al.score == 1.0 and abs(al.translation_m[0] - 0.2) <= 0.051
+    assert shift_rival(prob, al, 0.05) is None

@@ -18,10 +18,10 @@ ROI 3.2–4.8 m and window 0.15–0.4 m by default (``--small``: ROI 1.2–2.4 m
 exhaustive reference ((2K+1)² translations × 360 angles, then 21 fine angles) stays affordable.
 
 "same": the fast method's grid answer (θ, t), score and counts equal the reference's (refinement off),
-its profile is an upper envelope of the reference's, and its runner-up equals the reference's whenever
-that one scores within ``merger.window.RUNNER_UP_EXACT_GAP`` of the best coarse score (below it the
-fast runner-up is only a lower bound, and the reference's must lie below the gap too). The fast method is
-exact by construction (:mod:`merger.window`); this script checks it. Exit code 1 on any difference.
+its profile is an upper envelope of the reference's, and :func:`merger.window.exact_window_runner_up`
+equals the reference's runner-up (the fast search's own ``runner_up`` is the approximate one;
+``--no-runner-up`` skips this check). The fast method is exact by construction (:mod:`merger.window`);
+this script checks it. Exit code 1 on any difference.
 
 ``--accuracy-n`` adds the issue's operating point (ROI 8 m, window 0.5 m, errors up to 0.4 m), fast with
 refinement, against ground truth: θ and t errors (problems whose best ROI score is the 180° alignment
@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 from merger.grid import OccupancyGrid  # noqa: E402
 from merger.search import RotationProblem, angle_diff_deg, search  # noqa: E402
 from merger.synthetic import WINDOW_KINDS, window_case  # noqa: E402
-from merger.window import RUNNER_UP_EXACT_GAP  # noqa: E402
+from merger.window import exact_window_runner_up  # noqa: E402
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
 KINDS = (*WINDOW_KINDS, "near_empty", "lattice")
@@ -88,7 +88,7 @@ def problem(seed: int, kind: str, measure: str, size: str = "default") -> Rotati
     raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
 
 
-def compare(seed: int, kind: str, measure: str, size: str = "default") -> dict:
+def compare(seed: int, kind: str, measure: str, size: str = "default", runner_up: bool = True) -> dict:
     """Both searches (refinement off) on problem ``seed`` of ``kind``: the differences found, if any."""
     p = problem(seed, kind, measure, size)
     t0 = time.perf_counter()
@@ -104,15 +104,9 @@ def compare(seed: int, kind: str, measure: str, size: str = "default") -> dict:
         diffs.append("counts")
     if not (fast.profile >= ref.profile).all():
         diffs.append("profile not an upper envelope")
-    fr, rr = fast.runner_up, ref.runner_up
-    floor = float(ref.profile.max()) - RUNNER_UP_EXACT_GAP
-    if all(math.isnan(v) for v in rr):
-        ru_ok = all(math.isnan(v) for v in fr)
-    elif rr[1] >= floor:
-        ru_ok = fr == rr
-    else:  # below the gap: the fast runner-up is a lower bound, and says so by staying below it too
-        ru_ok = fr[1] <= rr[1] < floor
-    if not ru_ok:
+    rr = ref.runner_up
+    fr = exact_window_runner_up(p, fast.theta_deg) if runner_up else rr
+    if not (fr == rr or (all(math.isnan(v) for v in fr) and all(math.isnan(v) for v in rr))):
         diffs.append("runner-up")
     return {"seed": seed, "kind": kind, "measure": measure, "diffs": diffs, "gap": ref.score - fast.score,
             "ref_ms": (t1 - t0) * 1e3, "fast_ms": (t2 - t1) * 1e3,
@@ -144,6 +138,7 @@ def main(argv=None) -> int:
     ap.add_argument("--measures", default=",".join(MEASURES), help="comma-separated subset of " + ", ".join(MEASURES))
     ap.add_argument("--small", action="store_true", help="ROI 1.2–2.4 m, window 0.1–0.3 m (a cheaper reference)")
     ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--no-runner-up", action="store_true", help="skip the exact runner-up's check")
     ap.add_argument("--accuracy-n", type=int, default=0, help="problems per kind at ROI 8 m / W 0.5 m vs truth")
     args = ap.parse_args(argv)
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
@@ -158,7 +153,7 @@ def main(argv=None) -> int:
               f"{'fast ms':>8}   (medians)", flush=True)
         for k in kinds:
             for m in measures:
-                rows = [compare(s, k, m, size) for s in range(args.first_seed, args.first_seed + args.n)]
+                rows = [compare(s, k, m, size, not args.no_runner_up) for s in range(args.first_seed, args.first_seed + args.n)]
                 total += len(rows)
                 failures += [r for r in rows if r["diffs"]]
                 print(f"{k:>10} {m:>12} {len(rows):>8} {sum(not r['diffs'] for r in rows):>5} "

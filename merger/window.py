@@ -17,22 +17,91 @@ translation first in :func:`translation_offsets` order (nearest the given center
 smallest angle; then the thesis's refinement, 0.1° over θc ± 1° at tc (first maximum): (2K+1)²·360 + 21
 evaluations.
 
-**The fast method** (:func:`fast_window_search`) finds that answer with few exact evaluations:
+**The fast method** (:func:`fast_window_search`) returns exactly that answer — θ, t, score and counts, ties
+and plateaus included, for all three measures — with few exact evaluations. It never guesses: a
+region of (θ, t) is skipped only when a *true upper bound* shows that it cannot come before the best
+alignment already evaluated in the reference's order; everything else is evaluated exactly.
 
-1. *All (θ, t), approximately*: the polar FFT profile of :mod:`merger.polar` about every translation of
-   a coarse lattice (max-pooled cells of 10–35 cm, at most ±3 lattice steps; rings inside the ROI's
-   inscribed circle), all 360 angles per translation in one FFT product;
-2. *A few (θ, t), exactly*: the best approximate peaks (non-maximum suppressed, plus the best one near
-   the half turn, the thesis's typical false alignment) are hill-climbed on the exact coarse grid
-   (1° × one cell) with :class:`WindowEvaluator`, which computes the exact counts of one angle for many
+1. *An incumbent, cheaply*: the polar FFT profile of :mod:`merger.polar` about every translation of a
+   coarse lattice (max-pooled cells of 10–35 cm, at most ±3 lattice steps; rings inside the ROI's
+   inscribed circle), all 360 angles per translation in one FFT product; its best peaks (non-maximum
+   suppressed, plus the best one near the half turn) are hill-climbed on the exact coarse grid
+   (1° × one cell) with :class:`WindowEvaluator`, which computes the exact values of one angle at many
    translations at once (the rotated moving ROI does not depend on t; the reference ROI is a shifted
-   block of the reference grid);
-3. *The refinement exactly*, as the reference: 21 angles at tc by :class:`merger.sparse.SparseEvaluator`.
+   block of the reference grid). The best end is the incumbent: an exact value, usually the answer.
+2. *The certificate* (:class:`merger.window_bounds.Certifier`), a branch and bound over (coarse angle,
+   box of translations) in two stages, with the order of the reference as the key: (value, −rank of t
+   in :func:`translation_offsets`, −θ).
 
-Step 2 starts only from the approximate stage's peaks: it returns the reference's answer when the
-approximation ranks the true best peak among its best few, which ``benchmarks/agree_window.py``
-and the tests check against the reference. It is not exact by construction: on random-noise grids the
-approximate stage misses the best peak (measured there).
+   a. *Sector bounds*, all 360 angles at once, per box of 3 × 3 translations: the polar sectors of
+      :mod:`merger.fast` (``SectorBounds``) with the moving map's sector classes grown by the box's
+      displacement radius (:class:`merger.window_bounds.BoxBounds`).
+   b. *Per surviving angle*, its exact rotated moving ROI, and per surviving box a bound from the
+      reference pooled over the box (Cartographer's fast correlative scan matcher's idea: the max of the
+      reference's occupied cells over every shift of the box, the min of its free ones); the
+      translations of a box the bound cannot exclude are evaluated exactly.
+
+   A region is discarded when, for each of its angles, (bound, −the smallest rank in the box, −θ) comes
+   no earlier than the incumbent's key: then no (θ, t) in it has a higher value, nor an equal value
+   with an earlier translation or, at the same translation, a smaller angle. The incumbent only
+   rises, so a region discarded against an earlier incumbent stays discarded. When every region has
+   been evaluated or discarded, the incumbent is the reference's (θc, tc). The order in which regions
+   are visited decides nothing, only values and ranks do.
+3. *The refinement exactly*, as the reference: 21 angles at tc by :class:`merger.sparse.SparseEvaluator`
+   (the reference's floats), first maximum.
+
+**Why the bounds hold.** Write R_t for the reference ROI at t and M_θ for the moving ROI rotated by θ:
+lattice point k (offsets :func:`merger.sparse.lattice_coords`) of M_θ holds the state of the moving cell
+containing c_m + R(−θ)k (unknown outside the moving ROI's square); M_θ does not depend on t. A box of
+translations [a0, a1] × [b0, b1] is *consistent* when every R_t is a plain block of the evaluator's padded
+reference whose first row and column advance by exactly one cell per cell of translation; then
+R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). Boxes that are not (float ties in the
+reference lattice: centers on cell borders) are never bounded — their translations are evaluated
+exactly, one by one.
+
+* *Sector bounds* (a). Let t_c be the box's center (boxes have odd sides) and s = (s_a, s_b) its
+  half-sides. Every lattice point of R_t is a point x = k + δ of the union lattice U (side n + 2s) about
+  c_ref + t_c, δ = t − t_c, and its lookup is c_m + R(−θ)k = c_m + R(−θ)x − R(−θ)δ with
+  |R(−θ)δ| = |δ| ≤ ρ = ‖s‖·cell. :mod:`merger.fast`'s argument for a whole-degree rotation then holds with
+  "the lookup lies in the sector s(x) − θ" replaced by "within ρ of it": *MayOcc_ρ* marks every sector
+  that a moving block holding an occupied cell (not outside the square) touches once grown by ρ
+  (``grow`` in :func:`merger.fast._polar_boxes`: radii ∓ρ, angular half-width from its half-diagonal + ρ);
+  *SureFree_ρ* requires the sector's center in a Fin block and no boundary block of Fin touching it grown
+  by ρ — the ρ-neighbourhood of a sector is connected, so the path argument shows every point of it lies
+  in a Fin block; *MayFree_ρ*, *SureOcc_ρ* likewise. So for every t in the box: agr̃ ≤ Σ over the
+  reference-occupied points of U of MayOcc_ρ; dis ≥ Σ over the reference-occupied points of the
+  intersection lattice I (side n − 2s: points of every R_t) of SureFree_ρ (+ reference-free points of I
+  against SureOcc_ρ for Birk–Carpin); free/free ≤ Σ over the free points of U of MayFree_ρ. NCC: Σxy = agr̃
+  ≤ that bound; Σy(θ) (occupied lookups of the n-lattice) does not depend on t and is bounded by the
+  ungrown classes; Σx(t) is exact per t (a summed-area table of the padded reference); the bound is the
+  largest of :func:`merger.fast._ncc_upper` over the box's values of Σx. One sector layout, for the
+  lattice of side n + 2K, serves every box (U, I and the ROI lattice are its centred sub-blocks, with the
+  same coordinates); the counts are circular correlations over the 360 degree shifts, exact integers as
+  in :mod:`merger.fast`.
+* *Pooled references* (b). With M_θ exact (:func:`merger.transform.rotated_roi_fast`, the reference's
+  states) and a consistent box of hb × ha translations: agr̃(θ, t) = Σ_{k ∈ P_θ} Occ(R_t(k)) ≤ Σ_{k ∈ P_θ}
+  MaxOcc(r0 + k_i, c0 + k_j), P_θ the occupied lattice points of M_θ and MaxOcc the maximum of the
+  occupied indicator over the box's shifts δ (``cv2.dilate`` with an hb × ha kernel anchored at its first
+  cell, 0 beyond the padded grid — never read: every R_t lies inside it); dis ≥ Σ_{k ∈ P_θ} MinFree(…)
+  + Σ_{k: M_θ free} MinOcc(…) (``cv2.erode``: free, resp. occupied, for every shift); free/free ≤
+  Σ_{k: M_θ free} MaxFree(…). NCC: Σy = |P_θ| exactly, Σx(t) exactly, and (Σxy − Σx·Σy/N)/√(vx·vy) grows
+  with Σxy: the largest over the box's Σx of :func:`merger.sparse.ncc_from_sums` at Σxy = the bound.
+* *Counts → scores*: ω̃ = a/(a + d) grows with a and falls with d; integers are exact in float64 and a
+  correctly rounded division is monotone, so the float bound is ≥ the reference's float (Birk–Carpin
+  with a + free/free likewise). A bound equal to the incumbent's value excludes only regions whose
+  translations all rank after it (the tie order), so plateaus of equal scores are decided by the
+  ranks and angles, as the reference decides them.
+* *Exact values* — the incumbent's and every evaluation's — are :class:`WindowEvaluator`'s, equal as floats
+  to the reference's (tested against :meth:`RotationProblem.evaluate` on random grids, centers on cell
+  borders, ROIs leaving the grid).
+
+**Evidence.** ``profile`` is an **upper envelope** of the reference's profile (max over t per coarse
+angle): per angle, the largest of the bounds that discarded its regions and of its exact values — exact
+only where the best translation was evaluated. ``runner_up`` is **approximate**: the best coarse angle
+≥ 10° from θ of the approximate table, overwritten by the exact values evaluated (as before this
+search was exact); :func:`exact_window_runner_up` computes the reference's runner-up exactly with the
+same certificate (costly when the runner-up is at the noise level: few regions can be excluded there).
+The guard beyond the window (:func:`beyond_window`) is a heuristic in what it looks at (documented there).
 
 A rotated moving ROI depends only on the moving map, its center and θ: they are kept in a bounded
 cache keyed by the map's content (:func:`_rotated`), shared by the searches of a merge cycle and of
@@ -557,7 +626,7 @@ class _Climber:
 def fast_window_search(problem):
     """The fast rotation × translation search: exactly the reference's grid answer (see the module
     documentation)."""
-    from .search import RUNNER_UP_MIN_SEPARATION_DEG, Alignment, angle_diff_deg, fine_angles, wrap_deg
+    from .search import Alignment, fine_angles, runner_up, wrap_deg
     from .window_bounds import Certifier
 
     k = problem.window_cells
@@ -579,37 +648,41 @@ def fast_window_search(problem):
     values = sev.scores(fine)
     kf = int(np.argmax(values))
     theta = wrap_deg(fine[kf])
-    profile = cert.env.copy()
-    lock = threading.Lock()  # the deferred runner-up shares the evaluator, which is not thread-safe
-
-    def runner_up():
-        far = np.abs(angle_diff_deg(np.arange(360.0), theta)) >= RUNNER_UP_MIN_SEPARATION_DEG
-        if not far.any():
-            return float("nan"), float("nan")
-        with lock:
-            return _window_runner_up(cert, climber, ts_c, table, pool, far, best[0][0] - RUNNER_UP_EXACT_GAP)
+    profile = cert.env.copy()  # an upper envelope of the reference's profile (exact where evaluated)
+    approx = table.max(axis=0)  # the runner-up's profile: approximate, exact where evaluated
+    for x, tab in ev.values.items():
+        tab = tab[1:-1, 1:-1]  # the window (the evaluator reaches one cell beyond)
+        if float(x).is_integer() and 0 <= x < 360 and not np.isnan(tab).all():
+            approx[int(x)] = np.nanmax(tab)
 
     best_value = best[0][0]
     al = Alignment(theta, float(values[kf]), lambda: sev.similarity(fine[kf]).counts, problem.measure,
-                   "fast", problem.roi_m, profile, runner_up,
+                   "fast", problem.roi_m, profile, lambda: runner_up(approx, theta),
                    window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,
                    fine=(np.asarray(fine), np.asarray(values, np.float64)),
                    _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)))
     return refine_alignment(problem, al, ev) if problem.refine else al
 
 
-RUNNER_UP_STARTS = 2  # approximate peaks among the far angles climbed for the runner-up's first incumbent
-RUNNER_UP_EXACT_GAP = 0.15  # the runner-up is exact when it scores within this of the best coarse score
+RUNNER_UP_STARTS = 2  # approximate peaks among the far angles climbed for the exact runner-up's first incumbent
 
 
-def _window_runner_up(cert, climber, ts, table, pool, far: np.ndarray, floor: float) -> tuple[float, float]:
-    """The reference's runner-up — the first maximum over the coarse angles ``far`` (at least 10° from θ)
-    of the best value over the window's translations — exactly when it reaches ``floor``. Climbs from
-    the approximate table's best far peaks give a first incumbent; the certifier (ties: the smallest
-    angle) then finds the best, skipping every region whose bound is below ``floor``: when the runner-up
-    scores less, the result is the best far alignment evaluated (its score a lower bound, the exact one
-    below ``floor``)."""
-    ev = climber.ev
+def exact_window_runner_up(problem, theta_deg: float) -> tuple[float, float]:
+    """The reference's runner-up of a windowed problem exactly — the first maximum, over the coarse angles
+    at least 10° from ``theta_deg``, of the best value over the window's translations — by the
+    certifier of :func:`fast_window_search` (ties: the smallest angle): ``(θ°, score)``, NaNs when no
+    angle is that far. Costly when the runner-up scores near the noise level (few regions can be
+    excluded): the windowed fast search's own ``runner_up`` is the approximate one."""
+    from .search import RUNNER_UP_MIN_SEPARATION_DEG, angle_diff_deg
+    from .window_bounds import Certifier
+
+    far = np.abs(angle_diff_deg(np.arange(360.0), theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
+    if not far.any():
+        return float("nan"), float("nan")
+    k = problem.window_cells
+    ts, table, pool = approximate_window_table(problem, k)
+    ev = WindowEvaluator(problem)
+    climber = _Climber(ev, k)
     sub = np.where(far[None, :], table, -np.inf)
     for th, a, b in _peaks(ts, sub, pool, RUNNER_UP_STARTS):
         if far[th]:
@@ -621,9 +694,7 @@ def _window_runner_up(cert, climber, ts, table, pool, far: np.ndarray, floor: fl
             key = (float(np.nanmax(tab)), 0, -int(x))
             if key > inc[0]:
                 inc = (key, int(x), None)
-    (v, _, _), th, _ = cert.run(inc, far, use_rank=False, floor=floor)
-    if th is None:
-        return float("nan"), float("nan")
+    (v, _, _), th, _ = Certifier(problem, ev, climber.rank).run(inc, far, use_rank=False)
     return float(th), float(v)
 
 

@@ -1,6 +1,16 @@
-"""True upper bounds of a windowed problem's coarse scores over (every angle) × (a box of translations).
+"""The certificate of the windowed fast search: true upper bounds over (angle, box of translations), and
+the branch and bound that makes :func:`merger.window.fast_window_search` return exactly the reference's
+grid answer.
 
-See :mod:`merger.window` (the search that uses them) for the argument why each bound holds.
+* :class:`BoxBounds` — upper bounds of the coarse values at all 360 angles over a box of translations:
+  :mod:`merger.fast`'s sector bounds about the box's center, the moving map's sector classes grown by
+  the box's displacement radius;
+* :class:`Certifier` — the branch and bound: sector bounds per box of 3 × 3 translations, then per
+  surviving angle its exact rotated ROI with the reference pooled over each surviving box, and exact
+  values (:class:`merger.window.WindowEvaluator`) wherever a bound cannot exclude the region.
+
+The argument why each bound holds, and why the result is the reference's answer, ties and plateaus
+included, is in :mod:`merger.window`'s documentation.
 """
 
 from __future__ import annotations
@@ -313,70 +323,65 @@ class Certifier:
                 return False
         return True
 
-    def _rect_bound(self, theta: float, rect) -> float:
-        """An upper bound of v(θ, t) over the consistent box ``rect``, with θ's exact rotated ROI."""
-        a0, a1, b0, b1 = rect
+    def _rect_bounds(self, theta: float, rects: list) -> np.ndarray:
+        """Upper bounds of v(θ, t) over each consistent box of ``rects``, with θ's exact rotated ROI (the
+        pooled references gathered at the moving-occupied lattice points, and so on: see
+        :mod:`merger.window`)."""
         ev, s = self.ev, self.sectors
-        kk = s.reach
-        max_occ, min_free, max_free, q = self._pool(b1 - b0 + 1, a1 - a0 + 1)
+        kk, n, m = s.reach, self.n, ev._margin
+        wp, w = ev._pad.shape[1], n + 2 * ev._margin
         (_, _, pflat), mfp, mov = ev._mov[theta]
-        r, c = int(s.rf[b0 + kk]), int(s.cf[a0 + kk])
-        base = r * ev._pad.shape[1] + c
-        idx = pflat + base
-        agr = int(np.count_nonzero(max_occ[idx]))
         measure = self.problem.measure
-        if measure == "ncc":
-            sy = float(pflat.size)
-            return max(ncc_from_sums(self.n * self.n, float(sx), sy, float(agr))
-                       for sx in s.sx_values(a0, a1, b0, b1).tolist())
-        m = ev._margin
-        dis = int(np.count_nonzero(min_free[idx]))
-        if q.size:
-            dis += int(np.count_nonzero(mfp[q - ((r - m) * (self.n + 2 * m) + (c - m))]))
-        if measure == "birk_carpin":
-            fp = self._free_pts.get(theta)
-            if fp is None:
-                fi, fj = np.divmod(np.flatnonzero(mov == FREE_S), self.n)
-                fp = self._free_pts[theta] = fi * ev._pad.shape[1] + fj
-            agr += int(np.count_nonzero(max_free[fp + base]))
-        return agr / (agr + dis) if agr + dis else 0.0
+        out = np.empty(len(rects))
+        groups: dict = {}
+        for i, (a0, a1, b0, b1) in enumerate(rects):
+            groups.setdefault((b1 - b0 + 1, a1 - a0 + 1), []).append(i)
+        for (hb, ha), members in groups.items():
+            max_occ, min_free, max_free, q = self._pool(hb, ha)
+            rr = np.array([rects[i] for i in members], np.intp)
+            r = s.rf[rr[:, 2] + kk].astype(np.intp)
+            c = s.cf[rr[:, 0] + kk].astype(np.intp)
+            base = r * wp + c
+            idx = base[:, None] + pflat[None, :]
+            agr = np.count_nonzero(max_occ[idx], axis=1)
+            if measure == "ncc":
+                sy = float(pflat.size)
+                for j, i in enumerate(members):
+                    a0, a1, b0, b1 = rects[i]
+                    out[i] = max(ncc_from_sums(n * n, float(sx), sy, float(agr[j]))
+                                 for sx in s.sx_values(a0, a1, b0, b1).tolist())
+                continue
+            dis = np.count_nonzero(min_free[idx], axis=1)
+            if q.size:
+                dis += np.count_nonzero(mfp[q[None, :] - ((r - m) * w + (c - m))[:, None]], axis=1)
+            if measure == "birk_carpin":
+                fp = self._free_pts.get(theta)
+                if fp is None:
+                    fi, fj = np.divmod(np.flatnonzero(mov == FREE_S), n)
+                    fp = self._free_pts[theta] = fi * wp + fj
+                agr = agr + np.count_nonzero(max_free[base[:, None] + fp[None, :]], axis=1)
+            # the floats of index_from_counts (integer counts, one correctly rounded division)
+            out[members] = [a / (a + d) if a + d else 0.0 for a, d in zip(agr.tolist(), dis.tolist(), strict=True)]
+        return out
 
     def _angle(self, th: int, rects) -> None:
-        """Every translation of ``rects`` at the coarse angle θ, by branch and bound on boxes."""
+        """Every translation of the boxes ``rects`` at the coarse angle θ: each box is bounded with θ's
+        exact rotated ROI, and its translations are evaluated exactly unless the bound excludes them."""
         theta = float(th)
         self.ev.moving([theta])
         self.stats["angles"] += 1
-        stack = list(rects)
-        while stack:
-            leaves_a, leaves_b, nxt = [], [], []
-            for rect in stack:
-                a0, a1, b0, b1 = rect
-                if (a1 - a0 + 1) * (b1 - b0 + 1) <= 2 or not self._consistent(*rect):
-                    if (a0, b0) == (a1, b1) or (a1 - a0 + 1) * (b1 - b0 + 1) <= 2:
-                        for b in range(b0, b1 + 1):
-                            for a in range(a0, a1 + 1):
-                                leaves_a.append(a)
-                                leaves_b.append(b)
-                        continue
-                    nxt += _halves(rect)
-                    continue
-                ub = self._rect_bound(theta, rect)
-                self.stats["boxes"] += 1
-                if self._wins(ub, self._minrank(*rect), th):
-                    nxt += _halves(rect)
+        ok = [r for r in rects if self._consistent(*r)]
+        keep = [r for r in rects if not self._consistent(*r)]  # (float ties in the lattice) no bound
+        if ok:
+            ub = self._rect_bounds(theta, ok)
+            self.stats["boxes"] += len(ok)
+            for r, u in zip(ok, ub.tolist(), strict=True):
+                if self._wins(u, self._minrank(*r), th):
+                    keep.append(r)
                 else:
-                    self.env[th] = max(self.env[th], ub)
-            if leaves_a:
-                a, b = np.array(leaves_a, np.intp), np.array(leaves_b, np.intp)
-                self.stats["leaves"] += a.size
-                self._offer(th, a, b, self.ev.evaluate_ab(theta, a, b))
-            stack = nxt
-
-
-def _halves(rect):
-    """A box cut in two along each axis longer than one cell (2 or 4 boxes)."""
-    a0, a1, b0, b1 = rect
-    am, bm = (a0 + a1) // 2, (b0 + b1) // 2
-    xs = [(a0, am), (am + 1, a1)] if a1 > a0 else [(a0, a1)]
-    ys = [(b0, bm), (bm + 1, b1)] if b1 > b0 else [(b0, b1)]
-    return [(x0, x1, y0, y1) for y0, y1 in ys for x0, x1 in xs]
+                    self.env[th] = max(self.env[th], u)
+        if keep:
+            a = np.array([x for a0, a1, b0, b1 in keep for _ in range(b0, b1 + 1) for x in range(a0, a1 + 1)], np.intp)
+            b = np.array([y for a0, a1, b0, b1 in keep for y in range(b0, b1 + 1) for _ in range(a0, a1 + 1)], np.intp)
+            self.stats["leaves"] += a.size
+            self._offer(th, a, b, self.ev.evaluate_ab(theta, a, b))

@@ -6,8 +6,8 @@ x_ref = c_ref + t + R(θ)(x_mov − c_mov), t within ±window_m in one-cell step
 * the window's parameters and their errors;
 * the exact evaluator (WindowEvaluator) and the OpenCV rotation (rotated_roi_fast) against the
   reference code paths (problem.at(a, b).evaluate, rotated_roi), incl. cell-border ties;
-* the fast windowed method against the exhaustive reference on fixed seeds of the structured kinds
-  (it is not exact by construction: random-noise grids are not compared);
+* the fast windowed method against the exhaustive reference on fixed seeds (it is exact by
+  construction: tests/test_window_exact.py has the property test over arbitrary grids);
 * recovery of (θ*, t*) with rough centers on generated rooms and on the real office map, and in a team
   merge (where the rotation-only search fails with the same center errors);
 * the grid answer (refine=False) and the bounds of the sub-cell refinement.
@@ -360,7 +360,7 @@ def test_windowed_search_on_a_map_smaller_than_the_roi():
 REF_CASES = [("views", 0, "similarity"), ("views", 1, "similarity"), ("views", 2, "similarity"),
              ("identical", 0, "similarity"), ("identical", 2, "similarity"), ("sparse", 0, "similarity"),
              ("sparse", 1, "similarity"), ("sparse", 2, "similarity"), ("identical", 1, "birk_carpin"),
-             ("sparse", 3, "birk_carpin")]
+             ("sparse", 3, "birk_carpin"), ("noise", 0, "similarity"), ("symmetric", 18, "similarity")]
 
 
 def _ref_problem(kind, seed, measure):

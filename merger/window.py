@@ -135,7 +135,7 @@ from .transform import rotated_roi_fast
 POLAR_POOL_MIN = 2  # the approximate stage pools at least 2× (10 cm cells at 5 cm)
 POLAR_TARGET_CELLS = 40  # ... and keeps about this many pooled cells across the ROI
 MAX_LATTICE_STEPS = 3  # ... and coarser for wide windows: at most ±3 pooled cells of translation
-WINDOW_CANDIDATES = 5  # approximate peaks climbed exactly
+WINDOW_CANDIDATES = 5  # approximate peaks climbed exactly (the best end: the certificate's first incumbent)
 FIRST_LOOK_STRIDE = 2  # a climb's first look over the start's pooled cell samples every other cell
 NMS_DEG = 4  # peaks closer than this (and within one pooled cell) are one peak
 OPPOSITE_DEG = 20

@@ -232,6 +232,7 @@ class Certifier:
         self._sector_cache: dict = {}
         self._pooled: dict = {}
         self._free_pts: dict = {}
+        self._rects: dict = {}
         ev._occupied_cells()
         self.env = np.full(360, -np.inf)  # per angle: an upper bound of the best value (the profile)
         self.stats = {"sector_boxes": 0, "angles": 0, "boxes": 0, "leaves": 0}
@@ -398,18 +399,30 @@ class Certifier:
         theta = float(th)
         self.ev.moving([theta])
         self.stats["angles"] += 1
-        ok = [r for r in rects if self._consistent(*r)]
-        keep = [r for r in rects if not self._consistent(*r)]  # (float ties in the lattice) no bound
+        info = [self._rect_info(r) for r in rects]
+        ok = [i for i, x in enumerate(info) if x[0]]
+        keep = [i for i, x in enumerate(info) if not x[0]]  # (float ties in the lattice) no bound
         if ok:
-            ub = self._rect_bounds(theta, ok)
+            ub = self._rect_bounds(theta, [rects[i] for i in ok])
             self.stats["boxes"] += len(ok)
-            for r, u in zip(ok, ub.tolist(), strict=True):
-                if self._wins(u, self._minrank(*r), th):
-                    keep.append(r)
-                else:
-                    self.env[th] = max(self.env[th], u)
+            for i, u in zip(ok, ub.tolist(), strict=True):
+                if self._wins(u, info[i][1] if self.use_rank else 0, th):
+                    keep.append(i)
+                elif u > self.env[th]:
+                    self.env[th] = u
         if keep:
-            a = np.array([x for a0, a1, b0, b1 in keep for _ in range(b0, b1 + 1) for x in range(a0, a1 + 1)], np.intp)
-            b = np.array([y for a0, a1, b0, b1 in keep for y in range(b0, b1 + 1) for _ in range(a0, a1 + 1)], np.intp)
+            a = np.concatenate([info[i][2] for i in keep])
+            b = np.concatenate([info[i][3] for i in keep])
             self.stats["leaves"] += a.size
             self._offer(th, a, b, self.ev.evaluate_ab(theta, a, b))
+
+    def _rect_info(self, rect):
+        """(consistent, smallest rank, translations a, translations b) of a box (kept)."""
+        hit = self._rects.get(rect)
+        if hit is None:
+            a0, a1, b0, b1 = rect
+            k = self.k
+            a, b = np.meshgrid(np.arange(a0, a1 + 1), np.arange(b0, b1 + 1))
+            hit = self._rects[rect] = (self._consistent(*rect), int(self.rank[b0 + k:b1 + k + 1, a0 + k:a1 + k + 1].min()),
+                                       a.reshape(-1), b.reshape(-1))
+        return hit

@@ -272,7 +272,7 @@ def test_a_map_shifted_along_its_walls_is_weighed_against_the_truth_not_accepted
     superposition scored 0.970 at a translation 0.65 m from the truth (the window's edge, 236 cells) against
     0.941 at the truth (476 cells); the shifted placement passed whole-map verification and was a false
     merge in three cycles. The translation rival (merger.ambiguity.shift_rival) lets whole-map ν choose."""
-    sc = scene("scene2-thesis", "merger.window_m=0.5", "center_error.magnitude_m=0.05", "seed=1", "duration_s=22")
+    sc = scene("scene2-thesis", "merger.window_m=0.5", "center_error.magnitude_m=0.05", "seed=1", "duration_s=24")
     res = Simulation(sc).run()
     assert res.false_merges == 0
     assert all(m.first_merge_s is not None for m in res.robots.values())

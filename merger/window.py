@@ -135,6 +135,7 @@ from .transform import rotated_roi_fast
 POLAR_POOL_MIN = 2  # the approximate stage pools at least 2× (10 cm cells at 5 cm)
 POLAR_TARGET_CELLS = 40  # ... and keeps about this many pooled cells across the ROI
 MAX_LATTICE_STEPS = 3  # ... and coarser for wide windows: at most ±3 pooled cells of translation
+FREE_CHUNK = 1 << 21  # lookups per batch of the free/free gathers (Birk–Carpin)
 WINDOW_CANDIDATES = 5  # approximate peaks climbed exactly (the best end: the certificate's first incumbent)
 FIRST_LOOK_STRIDE = 2  # a climb's first look over the start's pooled cell samples every other cell
 NMS_DEG = 4  # peaks closer than this (and within one pooled cell) are one peak
@@ -383,16 +384,24 @@ class WindowEvaluator:
             d_ro[block] = np.count_nonzero(mfp[flat], axis=1)
             if self.problem.measure == "ncc":
                 sx[block] = np.count_nonzero(self._inside[flat], axis=1)
-        if not block.all() or free_agree:
+        if free_agree and block.any():  # free/free: the moving-free lattice points against each block
+            fi, fj = np.divmod(np.flatnonzero(mov == FREE_S), n)
+            fflat = fi * wp + fj
+            rows = np.flatnonzero(block)
+            step = max(1, FREE_CHUNK // max(fflat.size, 1))
+            for c0 in range(0, rows.size, step):
+                rr = rows[c0:c0 + step]
+                st = self._padflat[(rf[ib[rr]] * wp + cf[ia[rr]])[:, None] + fflat[None, :]]
+                ff[rr] = np.count_nonzero(st == FREE_S, axis=1)
+        if not block.all():
             padO2 = (self._pad == OCCUPIED_S)
             padF2 = (self._pad == FREE_S)
             mf = (mov == FREE_S).reshape(n, n)
-            for r in range(nt):
+            for r in np.flatnonzero(~block).tolist():  # not a plain block (float ties in the lattice): densely
                 rw, cl = rows_t[ib[r]], cols_t[ia[r]]
-                if not block[r]:  # not a plain block (float ties in the lattice): count densely
-                    ro = padO2[np.ix_(rw, cl)]
-                    sx[r] = np.count_nonzero(ro)
-                    d_ro[r] = np.count_nonzero(ro & mf)
+                ro = padO2[np.ix_(rw, cl)]
+                sx[r] = np.count_nonzero(ro)
+                d_ro[r] = np.count_nonzero(ro & mf)
                 if free_agree:
                     ff[r] = np.count_nonzero(padF2[np.ix_(rw, cl)] & mf)
         return agr, d_mo, d_ro, ff, sx, pflat.size

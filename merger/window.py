@@ -55,9 +55,9 @@ lattice point k (offsets :func:`merger.sparse.lattice_coords`) of M_θ holds the
 containing c_m + R(−θ)k (unknown outside the moving ROI's square); M_θ does not depend on t. A box of
 translations [a0, a1] × [b0, b1] is *consistent* when every R_t is a plain block of the evaluator's padded
 reference whose first row and column advance by exactly one cell per cell of translation; then
-R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). Boxes that are not (float ties in the
-reference lattice: centers on cell borders) are never bounded — their translations are evaluated
-exactly, one by one.
+R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). A box that is not (float ties in the
+reference lattice: centers on cell borders) is cut into single translations; a translation whose ROI is
+not a plain block gets no bound at all — it is evaluated exactly at every angle.
 
 * *Sector bounds* (a). Let t_c be the box's center (boxes have odd sides) and s = (s_a, s_b) its
   half-sides. Every lattice point of R_t is a point x = k + δ of the union lattice U (side n + 2s) about

@@ -2,7 +2,7 @@
 
 A search answers the best (θ, t) on the region of interest; its runner-up (:attr:`Alignment.runner_up`,
 the best coarse angle more than 10° away) is a rival, and so, with a translation window, is the best
-placement at the same angle (±1°) more than 0.2 m away (:func:`shift_rival`); the higher-scoring of
+placement at the same coarse angle more than 0.2 m away (:func:`shift_rival`); the higher-scoring of
 the two is the pair's runner-up. In a point-symmetric neighbourhood of the center
 the two peaks are the truth and its half turn, and the ROI cannot tell them apart. A pair is
 *ambiguous* when the runner-up's exact score (:func:`rival`: the runner-up's best translation in the
@@ -156,7 +156,7 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
 
 
 def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment | None:
-    """The best alignment at the best's angle (±1° coarse) whose translation lies more than 0.2 m from the
+    """The best alignment at the best's coarse angle whose translation lies more than 0.2 m from the
     best's, as an exact alignment, when it scores within ``margin`` of ``al`` on the ROI (None otherwise,
     without a window, or when ``margin`` ≤ 0).
 
@@ -177,15 +177,10 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Align
            if math.dist(problem.offset_m(a, b), a0) > RIVAL_SHIFT_M]
     if not far:
         return None
-    th0 = int(round(al.theta_grid_deg)) % 360
-    top = None
-    for d in (0, -1, 1):
-        th = float((th0 + d) % 360)
-        vals = ev.evaluate(th, far)
-        i = int(np.argmax(vals))
-        if top is None or vals[i] > top[0]:
-            top = (float(vals[i]), th, far[i])
-    top_value, th_c, tc = top
+    th_c = float(int(round(al.theta_grid_deg)) % 360)  # the best's coarse angle (its rotated ROI is cached)
+    vals = ev.evaluate(th_c, far)
+    i = int(np.argmax(vals))
+    top_value, tc = float(vals[i]), far[i]
     if al.score - top_value >= margin + PREFILTER_SLACK:
         return None
     angles = fine_angles(th_c)

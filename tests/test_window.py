@@ -649,3 +649,21 @@ def test_team_with_rough_centers_is_rejected_without_the_window(seed):
     names, exact, truth, _ = _team(seed, [(0.0, 0.0)] * 3)
     ok = merge_team(exact, MergeParams(window_m=0.0))
     assert ok.accepted and max(ok.chosen.angle_errors_deg(truth).values()) <= 0.5
+
+
+def test_the_climb_method_is_the_fast_searchs_incumbent_without_the_certificate():
+    """Method "climb": the windowed fast search without its certificate (approximate, cheaper). On structured
+    views it finds the reference's grid answer like "fast"; rotation-only problems get the fast search."""
+    from merger.search import RotationProblem, search
+    from merger.synthetic import window_case
+
+    for seed in (1, 2):
+        c = window_case(seed, "views")
+        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity",
+                            min(c.window_m, c.roi_m / 4))
+        fast, climb = search(p, "fast"), search(p, "climb")
+        assert climb.method == "climb" and fast.method == "fast"
+        assert (climb.theta_deg, climb.translation_m, climb.score) == (fast.theta_deg, fast.translation_m, fast.score)
+        flat = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity", 0.0)
+        a, b = search(flat, "fast"), search(flat, "climb")
+        assert (a.theta_deg, a.score) == (b.theta_deg, b.score)

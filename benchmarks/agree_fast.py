@@ -55,7 +55,7 @@ import merger.sparse as sparse_mod  # noqa: E402
 from merger.fast import fast_search  # noqa: E402
 from merger.grid import OccupancyGrid  # noqa: E402
 from merger.search import RotationProblem, reference_search  # noqa: E402
-from merger.synthetic import random_view_pair, window_case  # noqa: E402
+from merger.synthetic import near_empty_grid, random_view_pair, window_case  # noqa: E402
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
 KINDS = ("views", "rough", "symmetric", "sparse", "noise", "identical", "lattice", "near_empty", "mixed")
@@ -89,15 +89,7 @@ def problem(seed: int, kind: str, measure: str, scale: float = 1.0) -> RotationP
         roi = int(rng.integers(1, 80)) * 0.05
         return RotationProblem(g, g, (cx, cy), (cx, cy), roi, measure)
     if kind == "near_empty":
-        grids = []
-        for _ in range(2):
-            side = int(rng.integers(10, 90))
-            s = np.zeros((side, side), np.uint8)
-            if rng.random() < 0.8:
-                s[rng.random(s.shape) < rng.uniform(0, 0.6)] = 1
-            for _ in range(int(rng.integers(0, 7))):
-                s[rng.integers(0, side), rng.integers(0, side)] = 2
-            grids.append(OccupancyGrid(s, 0.05, (-side * 0.025, -side * 0.025)))
+        grids = [near_empty_grid(rng) for _ in range(2)]
         c = [tuple(rng.uniform(-0.3, 0.3, 2)) for _ in range(2)]
         return RotationProblem(grids[0], grids[1], c[0], c[1], float(rng.uniform(0.5, 4.0)), measure)
     if kind == "mixed":

@@ -43,7 +43,7 @@ import numpy as np  # noqa: E402
 
 from merger.grid import OccupancyGrid  # noqa: E402
 from merger.search import RotationProblem, angle_diff_deg, search  # noqa: E402
-from merger.synthetic import WINDOW_KINDS, window_case  # noqa: E402
+from merger.synthetic import WINDOW_KINDS, near_empty_grid, window_case  # noqa: E402
 from merger.window import exact_window_runner_up  # noqa: E402
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
@@ -62,15 +62,7 @@ def problem(seed: int, kind: str, measure: str, size: str = "default") -> Rotati
     roi = float(rng.uniform(*roi_r))
     win = min(float(rng.uniform(*win_r)), roi / 4)
     if kind == "near_empty":
-        grids = []
-        for _ in range(2):
-            side = int(rng.integers(10, 90))
-            st = np.zeros((side, side), np.uint8)
-            if rng.random() < 0.8:
-                st[rng.random(st.shape) < rng.uniform(0, 0.6)] = 1
-            for _ in range(int(rng.integers(0, 7))):
-                st[rng.integers(0, side), rng.integers(0, side)] = 2
-            grids.append(OccupancyGrid(st, 0.05, (-side * 0.025, -side * 0.025)))
+        grids = [near_empty_grid(rng) for _ in range(2)]
         c = [tuple(float(v) for v in rng.uniform(-0.3, 0.3, 2)) for _ in range(2)]
         return RotationProblem(grids[0], grids[1], c[0], c[1], roi, measure, win)
     if kind == "lattice":

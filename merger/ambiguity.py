@@ -106,22 +106,23 @@ class PairAmbiguity:
                 "theta_deg": [self.best.theta_deg, self.runner_up.theta_deg]}
 
 
-def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment | None:
+def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Alignment | None:
     """The runner-up of ``al`` as an exact alignment when it scores within ``margin`` of ``al`` on the ROI
     (None otherwise, or when ``margin`` ≤ 0).
 
     The profile's runner-up angle (coarse, possibly approximate) is re-evaluated exactly over every
     translation of the window at the coarse angles within ±2° of it (more than 10° from ``al``), then
     refined as the search refines its answer (0.1° over ±1°, then below the grid when the problem asks
-    for it), so that both hypotheses are compared on equal terms."""
-    from .window import WindowEvaluator, beyond_window, reference_beyond, refine_alignment
+    for it), so that both hypotheses are compared on equal terms. ``ev``: a
+    :class:`merger.window.WindowEvaluator` of ``problem`` to reuse (one is made otherwise)."""
+    from .window import WindowEvaluator
 
     if margin <= 0:
         return None
     ru_deg, ru_score = al.runner_up
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
-    ev = WindowEvaluator(problem)
+    ev = ev if ev is not None else WindowEvaluator(problem)
     k = problem.window_cells
     ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
     top = None
@@ -135,15 +136,24 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
             top = (float(vals[i]), th, ts[i])
     if top is None:
         return None
-    _, th_c, tc = top
+    top_value, th_c, tc = top
     angles = np.array([a for a in fine_angles(th_c)
                        if abs(angle_diff_deg(float(a), al.theta_deg)) > RUNNER_UP_MIN_SEPARATION_DEG])
+    return _exact_rival(problem, al, ev, angles, th_c, tc, top_value, margin)
+
+
+def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: float, tc, top_value: float,
+                 margin: float) -> Alignment | None:
+    """A rival's fine angle at translation ``tc`` (the best of ``angles``, exactly), as an alignment like
+    the search's — None when it scores ``margin`` or more below ``al``. ``th_c``, ``top_value``: its coarse
+    angle and coarse score, for the guard beyond the window."""
+    from .window import beyond_window, reference_beyond, refine_alignment
+
     vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
     kf = int(np.argmax(vals))
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
     if al.score - score >= margin:
         return None
-    top_value = top[0]
     guard = reference_beyond if al.method == "reference" else beyond_window
     # the guard beyond the window for the rival's own answer: a better alignment outside the window than
     # the rival refuses it as it would the best (the best may be the truth's peak cut by the window's
@@ -155,7 +165,7 @@ def rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment |
     return refine_alignment(problem, out, ev) if problem.refine else out
 
 
-def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Alignment | None:
+def shift_rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Alignment | None:
     """The best alignment at the best's coarse angle whose translation lies more than 0.2 m from the
     best's, as an exact alignment, when it scores within ``margin`` of ``al`` on the ROI (None otherwise,
     without a window, or when ``margin`` ≤ 0).
@@ -165,13 +175,14 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Align
     off by 5 cm, W = 0.5 m) Lyon onto the superposition of its teammates scored 0.970 at t = (−0.48, +0.38) m,
     the window's edge, on 236 cells, and 0.941 at the truth (2, 1 cells) on 476; the shifted placement
     passed whole-map verification (ν 0.79 and 0.85) and was a false merge in three cycles. As a rival, the
-    truth's whole-map ν decides. Its fine angle (0.1° over ±1°) and sub-cell refinement follow the search's."""
-    from .window import WindowEvaluator, beyond_window, reference_beyond, refine_alignment
+    truth's whole-map ν decides. Its fine angle (0.1° over ±1°) and sub-cell refinement follow the search's.
+    ``ev``: as for :func:`rival`."""
+    from .window import WindowEvaluator
 
     k = problem.window_cells
     if margin <= 0 or k == 0:
         return None
-    ev = WindowEvaluator(problem)
+    ev = ev if ev is not None else WindowEvaluator(problem)
     a0 = problem.offset_m(*al.cells)
     far = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)
            if math.dist(problem.offset_m(a, b), a0) > RIVAL_SHIFT_M]
@@ -183,18 +194,7 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float) -> Align
     top_value, tc = float(vals[i]), far[i]
     if al.score - top_value >= margin + PREFILTER_SLACK:
         return None
-    angles = fine_angles(th_c)
-    vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
-    kf = int(np.argmax(vals))
-    theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
-    if al.score - score >= margin:
-        return None
-    guard = reference_beyond if al.method == "reference" else beyond_window
-    out = Alignment(theta, score, ev.counts(float(angles[kf]), tc), al.measure, al.method, al.roi_m, al.profile,
-                    (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
-                    cells=tc, fine=(np.asarray(angles, np.float64), vals),
-                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)))
-    return refine_alignment(problem, out, ev) if problem.refine else out
+    return _exact_rival(problem, al, ev, fine_angles(th_c), th_c, tc, top_value, margin)
 
 
 def verdict(nu_best: float, nu_runner_up: float, margin: float) -> str:
@@ -214,7 +214,11 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
     and unresolved the best alignment is returned with the record, whose ``used``
     is False: the caller does not use the pair."""
-    rivals = [r for r in (rival(problem, al, margin), shift_rival(problem, al, margin)) if r is not None]
+    from .window import WindowEvaluator
+
+    # one evaluator for both rivals (the translation rival always needs one when it can exist)
+    ev = WindowEvaluator(problem) if margin > 0 and problem.window_cells > 0 else None
+    rivals = [r for r in (rival(problem, al, margin, ev), shift_rival(problem, al, margin, ev)) if r is not None]
     if not rivals:
         return al, None
     riv = max(rivals, key=lambda r: r.score)  # the first (the angle rival) of equal scores

@@ -290,6 +290,19 @@ class WindowCase:
     error_m: tuple[float, float]
 
 
+def near_empty_grid(rng: np.random.Generator) -> OccupancyGrid:
+    """A small, nearly empty ternary grid (10–89 cells a side, 5 cm, centred on the origin): mostly unknown,
+    some free cells with probability 0.8, and 0–6 occupied cells — the adversarial "near_empty" problems'
+    maps (``benchmarks/agree_fast.py``, ``benchmarks/agree_window.py``)."""
+    side = int(rng.integers(10, 90))
+    st = np.zeros((side, side), np.uint8)
+    if rng.random() < 0.8:
+        st[rng.random(st.shape) < rng.uniform(0, 0.6)] = FREE_S
+    for _ in range(int(rng.integers(0, 7))):
+        st[rng.integers(0, side), rng.integers(0, side)] = OCCUPIED_S
+    return OccupancyGrid(st, 0.05, (-side * 0.025, -side * 0.025))
+
+
 def window_case(seed: int, kind: str = "views", *, roi_m: tuple[float, float] = (3.2, 4.8),
                 window_m: tuple[float, float] = (0.15, 0.4), error_frac: float = 0.8,
                 size_m: float = 12.0) -> WindowCase:

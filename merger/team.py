@@ -453,7 +453,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         chosen = None if ambiguity else results[best]
     place = aligned[best][0] if chosen is not None else None
     if chosen is not None and params.combine_orders and params.verification == "whole_map":
-        combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, params, warps)
+        combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, orders[best], params, warps)
         if combined is not None:
             results[best], place = combined
             chosen = results[best]
@@ -467,7 +467,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
 
 
 def _combine(maps: list[MapInput], results: list[OrderResult], places: list[dict[int, Placement]],
-             accepted: list[int], best: int, params: MergeParams, warps: Warps):
+             accepted: list[int], best: int, order: tuple[int, ...], params: MergeParams, warps: Warps):
     """The mean placement of the accepted orders that agree with the best one, verified; ``None`` when
     fewer than two agree or the mean does not pass.
 
@@ -492,7 +492,6 @@ def _combine(maps: list[MapInput], results: list[OrderResult], places: list[dict
         tx = sum(places[k][i][1][0] for k in agree) / len(agree)
         ty = sum(places[k][i][1][1] for k in agree) / len(agree)
         place[i] = (0.0, ORIGIN) if i == 0 else (wrap_deg(th0 + dth), (float(tx), float(ty)))
-    order = tuple(next(k for k, m in enumerate(maps) if m.name == n) for n in b.order)
     fused = _order_result(maps, order, params, place, b.steps, warps)
     if not fused.accepted:
         return None

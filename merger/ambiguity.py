@@ -147,9 +147,13 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     """A rival's fine angle at translation ``tc`` (the best of ``angles``, exactly), as an alignment like
     the search's — None when it scores ``margin`` or more below ``al``. ``th_c``, ``top_value``: its coarse
     angle and coarse score, for the guard beyond the window."""
+    from .sparse import SparseEvaluator
     from .window import beyond_window, reference_beyond, refine_alignment
 
-    vals = np.array([ev.evaluate(float(a), [tc])[0] for a in angles], np.float64)
+    # many angles at one translation: the rotation problem about c_ref + t (its exact sparse evaluator,
+    # the same floats as the window evaluator's and the reference's, without a rotated ROI per angle)
+    sev = SparseEvaluator(problem.at(*tc))
+    vals = np.asarray(sev.scores([float(a) for a in angles]), np.float64)
     kf = int(np.argmax(vals))
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
     if al.score - score >= margin:
@@ -158,7 +162,7 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     # the guard beyond the window for the rival's own answer: a better alignment outside the window than
     # the rival refuses it as it would the best (the best may be the truth's peak cut by the window's
     # edge, and the rival the scene's half turn)
-    out = Alignment(theta, score, ev.counts(float(angles[kf]), tc), al.measure, al.method, al.roi_m, al.profile,
+    out = Alignment(theta, score, sev.similarity(float(angles[kf])).counts, al.measure, al.method, al.roi_m, al.profile,
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
                     _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)))

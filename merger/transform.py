@@ -279,6 +279,57 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
     return out
 
 
+def rotated_roi_classes(moving: OccupancyGrid, theta_deg: float, center_moving, n: int, resolution: float):
+    """Bounds of :func:`rotated_roi`'s states without its certification (the exact lookups near cell
+    borders): flat arrays ``(lo, hi)`` over the (n, n) lattice with lo ≤ the reference's state ≤ hi
+    (state codes unknown < free < occupied); so ``hi == occupied`` where the state *may* be occupied,
+    ``lo == occupied`` where it surely is, ``lo == hi == free`` where it is surely free. None where
+    :func:`rotated_roi_fast` would not use OpenCV's warp (the caller then computes the exact ROI).
+
+    Why they hold: OpenCV's nearest warp computes a lookup's continuous moving-cell coordinate to within
+    1/512 cell of the reference's u (its fixed point is good to ~1/1024: the margin
+    :func:`rotated_roi_fast` relies on). Four warps whose source points are moved by ±1/256 cell in x and
+    in y give, per axis, u'₋ < u < u'₊ with u'₊ − u'₋ ≤ 1/128 + 1/256 < 1, so floor(u) is floor(u'₋)
+    or floor(u'₊): the reference's cell is one of the four cells the shifted warps look up (outside the
+    grid, unknown, as the reference), and its state lies between their smallest and largest. The
+    lattice points whose rotated offset leaves the ROI square are unknown, exactly as the reference
+    decides (:func:`_outside_square`)."""
+    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
+        return None
+    r = rotation(-theta_deg)
+    k = (np.arange(n) - (n - 1) / 2.0) * resolution
+    rm = moving.resolution
+    a0 = (center_moving[0] - moving.origin[0] + r[0, 0] * k[0]) / rm + r[0, 1] * k[0] / rm
+    c0 = (center_moving[1] - moving.origin[1] + r[1, 0] * k[0]) / rm + r[1, 1] * k[0] / rm
+    if not max(abs(a0), abs(c0)) + 2 * (n - 1) * resolution / rm < _WARP_MAX_COORD:
+        return None
+    key = (n, float(resolution), float(theta_deg))
+    outside = _OUTSIDE.get(key)
+    if outside is None:
+        outside = _outside_square(n, resolution, float(theta_deg))
+        _OUTSIDE.put(key, outside)
+    if outside.size and outside[0] < 0:
+        return None
+    step = resolution / rm
+    src = np.ascontiguousarray(moving.states)
+    lo = hi = None
+    for dx in (-2 * _WARP_EPS, 2 * _WARP_EPS):
+        for dy in (-2 * _WARP_EPS, 2 * _WARP_EPS):
+            m = np.array([[r[0, 0] * step, r[0, 1] * step, a0 - 0.5 + dx],
+                          [r[1, 0] * step, r[1, 1] * step, c0 - 0.5 + dy]])
+            w = cv2.warpAffine(src, m, (n, n), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+            if lo is None:
+                lo, hi = w, w.copy()
+            else:
+                np.minimum(lo, w, out=lo)
+                np.maximum(hi, w, out=hi)
+    lo, hi = lo.reshape(-1), hi.reshape(-1)
+    lo[outside] = UNKNOWN_S
+    hi[outside] = UNKNOWN_S
+    return lo, hi
+
+
 _OUTSIDE = BoundedCache(max_entries=720, max_bytes=16 * 2**20)
 
 

@@ -36,10 +36,12 @@ alignment already evaluated in the reference's order; everything else is evaluat
    a. *Sector bounds*, all 360 angles at once, per box of 3 × 3 translations: the polar sectors of
       :mod:`merger.fast` (``SectorBounds``) with the moving map's sector classes grown by the box's
       displacement radius (:class:`merger.window_bounds.BoxBounds`).
-   b. *Per surviving angle*, its exact rotated moving ROI, and per surviving box a bound from the
-      reference pooled over the box (Cartographer's fast correlative scan matcher's idea: the max of the
-      reference's occupied cells over every shift of the box, the min of its free ones); the
-      translations of a box the bound cannot exclude are evaluated exactly.
+   b. *Per surviving angle*, its rotated moving ROI (for ω̃ only bounds of its states, from four
+      uncertified warps, :func:`merger.transform.rotated_roi_classes`; exact for the other measures),
+      and per surviving box a bound from the reference pooled over the box (Cartographer's fast
+      correlative scan matcher's idea: the max of the reference's occupied cells over every shift of
+      the box, the min of its free ones); the translations of a box the bound cannot exclude are
+      evaluated exactly (with the exact rotated ROI).
 
    A region is discarded when, for each of its angles, (bound, −the smallest rank in the box, −θ) comes
    no earlier than the incumbent's key: then no (θ, t) in it has a higher value, nor an equal value
@@ -86,6 +88,10 @@ not a plain block gets no bound at all — it is evaluated exactly at every angl
   + Σ_{k: M_θ free} MinOcc(…) (``cv2.erode``: free, resp. occupied, for every shift); free/free ≤
   Σ_{k: M_θ free} MaxFree(…). NCC: Σy = |P_θ| exactly, Σx(t) exactly, and (Σxy − Σx·Σy/N)/√(vx·vy) grows
   with Σxy: the largest over the box's Σx of :func:`merger.sparse.ncc_from_sums` at Σxy = the bound.
+  For ω̃ the exact M_θ is replaced by bounds of its states, lo ≤ M_θ ≤ hi
+  (:func:`merger.transform.rotated_roi_classes`, which proves them): agr̃ is bounded over the points
+  that *may* be occupied (hi), dis over the points surely occupied (lo) and the points surely free
+  (lo = hi = free) — a superset where agr̃ grows, subsets where dis shrinks, so the bound still holds.
 * *Counts → scores*: ω̃ = a/(a + d) grows with a and falls with d; integers are exact in float64 and a
   correctly rounded division is monotone, so the float bound is ≥ the reference's float (Birk–Carpin
   with a + free/free likewise). A bound equal to the incumbent's value excludes only regions whose
@@ -130,7 +136,7 @@ from .grid import FREE_S, OCCUPIED_S
 from .polar import PROFILE_LEN, _max_pool, _spectra, polar_layout, polar_spectra, square_crop
 from .similarity import Counts, index_from_counts
 from .sparse import SparseEvaluator, lattice_coords, ncc_from_sums
-from .transform import rotated_roi_fast
+from .transform import rotated_roi_classes, rotated_roi_fast
 
 POLAR_POOL_MIN = 2  # the approximate stage pools at least 2× (10 cm cells at 5 cm)
 POLAR_TARGET_CELLS = 40  # ... and keeps about this many pooled cells across the ROI
@@ -252,6 +258,8 @@ class WindowEvaluator:
         self._q = None
         self._margin = 0
         self._mov: dict[float, np.ndarray] = {}
+        self._movb: dict[float, tuple] = {}  # per angle: bound classes (moving_bounds)
+        self._lut = None
         self._dig = None
         self.values: dict[float, np.ndarray] = {}  # per angle: values by (b, a) + reach (NaN: not yet)
 
@@ -329,6 +337,38 @@ class WindowEvaluator:
             mfp[m:m + n, m:m + n] = (mov == FREE_S).reshape(n, n)
             # moving-occupied lattice points (i, j), and as flat offsets i·wp + j from the ROI's first cell
             self._mov[t] = ((pi, pj, pi * wp + pj), mfp.reshape(-1), mov)
+
+    def moving_bounds(self, theta: float):
+        """For bounds only (ω̃): ``(P⁺, P⁻, MF⁻)`` at angle θ — the flat offsets (as :meth:`moving`'s) of
+        the lattice points whose rotated moving state may be / surely is occupied, and the padded
+        indicator of those surely free (:func:`merger.transform.rotated_roi_classes`: four uncertified
+        warps, cheaper than the exact ROI); the exact classes when θ's exact ROI is already known or
+        the warps cannot be used."""
+        theta = float(theta)
+        hit = self._movb.get(theta)
+        if hit is not None:
+            return hit
+        cls = None
+        if theta not in self._mov:
+            p = self.problem
+            cls = rotated_roi_classes(p.moving, theta, p.center_moving, self.n, self.res)
+        if cls is None:
+            self.moving([theta])
+            (_, _, pflat), mfp, _ = self._mov[theta]
+            return pflat, pflat, mfp
+        self._occupied_cells()
+        n, m = self.n, self._margin
+        w = n + 2 * m
+        lut = self._lut
+        if lut is None:  # lattice flat index -> offset i·wp + j from the ROI's first padded cell
+            i, j = np.divmod(np.arange(n * n), n)
+            lut = self._lut = i * self._pad.shape[1] + j
+        lo, hi = cls
+        mfp = np.zeros((w, w), bool)
+        mfp[m:m + n, m:m + n] = ((lo == FREE_S) & (hi == FREE_S)).reshape(n, n)
+        hit = self._movb[theta] = (lut[np.flatnonzero(hi == OCCUPIED_S)], lut[np.flatnonzero(lo == OCCUPIED_S)],
+                                   mfp.reshape(-1))
+        return hit
 
     def evaluate(self, theta: float, ts) -> np.ndarray:
         """Values at angle θ and translations ``ts`` [(a, b), ...] (cells)."""

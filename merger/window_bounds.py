@@ -16,6 +16,7 @@ included, is in :mod:`merger.window`'s documentation.
 from __future__ import annotations
 
 import math
+import threading
 
 import cv2
 import numpy as np
@@ -28,6 +29,17 @@ from .sparse import ncc_from_sums
 SECTOR_HALF = 1  # the sector stage's boxes: 3 × 3 translations (fewer boxes leave many more angles)
 BOX_CHUNK = 16  # sector boxes whose histograms share one FFT
 _GROW_SLACK = 1e-7  # cells added to a box's displacement radius (≫ every rounding error of the lookups)
+_BUF = threading.local()  # a reused histogram buffer per thread (a fresh multi-MB array per group costs page faults)
+
+
+def _zeroed(size: int) -> np.ndarray:
+    """A zeroed float64 array of ``size`` from this thread's reused buffer (grown as needed)."""
+    buf = getattr(_BUF, "hist", None)
+    if buf is None or buf.size < size:
+        buf = _BUF.hist = np.empty(max(size, 1 << 20))
+    out = buf[:size]
+    out.fill(0.0)
+    return out
 
 
 class BoxBounds:
@@ -160,8 +172,9 @@ class BoxBounds:
         ids = [self._ids(pts, box, inner) for box in boxes for pts, inner in kinds]
         offs = np.repeat(np.arange(nb * nk) * size, [x.size for x in ids])
         allids = np.concatenate(ids) if ids else np.empty(0, np.intp)
-        hist = np.bincount(lay.lattice_row_id.take(allids) + offs, minlength=nb * nk * size)
-        spec = sfft.rfft(hist.reshape(nb, nk, lay.rows, 360).astype(np.float64), axis=-1)
+        hist = _zeroed(nb * nk * size)  # counts, exact in float64
+        np.add.at(hist, lay.lattice_row_id.take(allids) + offs, 1.0)
+        spec = sfft.rfft(hist.reshape(nb, nk, lay.rows, 360), axis=-1)
 
         def corr(j, name):
             x = sfft.irfft(np.einsum("brk,rk->bk", spec[:, j], np.conj(mov[name])), n=360, axis=-1)
@@ -353,14 +366,18 @@ class Certifier:
         return self.sectors.consistent_rect(a0, a1, b0, b1)
 
     def _rect_bounds(self, theta: float, rects: list) -> np.ndarray:
-        """Upper bounds of v(θ, t) over each consistent box of ``rects``, with θ's exact rotated ROI (the
-        pooled references gathered at the moving-occupied lattice points, and so on: see
-        :mod:`merger.window`)."""
+        """Upper bounds of v(θ, t) over each consistent box of ``rects``, with θ's rotated ROI (the pooled
+        references gathered at the moving-occupied lattice points, and so on: see :mod:`merger.window`;
+        for ω̃ bounds of the rotated states, :meth:`merger.window.WindowEvaluator.moving_bounds`)."""
         ev, s = self.ev, self.sectors
         kk, n, m = s.reach, self.n, ev._margin
         wp, w = ev._pad.shape[1], n + 2 * ev._margin
-        (_, _, pflat), mfp, mov = ev._mov[theta]
         measure = self.problem.measure
+        if measure == "similarity":  # may-occupied points for agr̃, surely occupied / free ones for dis
+            p_may, pflat, mfp = ev.moving_bounds(theta)
+        else:
+            (_, _, pflat), mfp, mov = ev._mov[theta]
+            p_may = pflat
         out = np.empty(len(rects))
         groups: dict = {}
         for i, (a0, a1, b0, b1) in enumerate(rects):
@@ -371,8 +388,8 @@ class Certifier:
             r = s.rf[rr[:, 2] + kk].astype(np.intp)
             c = s.cf[rr[:, 0] + kk].astype(np.intp)
             base = r * wp + c
+            agr = np.count_nonzero(max_occ[base[:, None] + p_may[None, :]], axis=1)
             idx = base[:, None] + pflat[None, :]
-            agr = np.count_nonzero(max_occ[idx], axis=1)
             if measure == "ncc":
                 sy = float(pflat.size)
                 for j, i in enumerate(members):
@@ -397,7 +414,8 @@ class Certifier:
         """Every translation of the boxes ``rects`` at the coarse angle θ: each box is bounded with θ's
         exact rotated ROI, and its translations are evaluated exactly unless the bound excludes them."""
         theta = float(th)
-        self.ev.moving([theta])
+        if self.problem.measure != "similarity":  # ω̃'s box bounds need only bound classes (moving_bounds)
+            self.ev.moving([theta])
         self.stats["angles"] += 1
         info = [self._rect_info(r) for r in rects]
         ok = [i for i, x in enumerate(info) if x[0]]

@@ -30,15 +30,24 @@ from merger.search import MAX_WINDOW_FRACTION, RotationProblem, angle_diff_deg, 
 from merger.similarity import measure_fn
 from merger.synthetic import (
     arc_viewpoints,
+    partial_view,
     partial_view_of_grid,
     random_view_pair,
     robot_pose_on_circle,
+    room_scene,
     widest_free_point,
     window_case,
     world_to_frame,
 )
 from merger.team import MapInput, MergeParams, merge_team, place_on_frame0
-from merger.transform import extract_roi, roi_cells, rotated_roi, rotated_roi_fast, rotation
+from merger.transform import (
+    extract_roi,
+    roi_cells,
+    rotated_roi,
+    rotated_roi_classes,
+    rotated_roi_fast,
+    rotation,
+)
 from merger.verify import verify
 from merger.window import WindowEvaluator, translation_offsets, window_cells
 from tests.conftest import three_views
@@ -320,6 +329,36 @@ def test_rotated_roi_fast_equals_rotated_roi_anywhere(seed, n, measure, mres, ro
         np.testing.assert_array_equal(rotated_roi_fast(p.moving, a, p.center_moving, p.n, RES),
                                       rotated_roi(p.moving, a, p.center_moving, None, p.n, RES))
     assert_evaluator_exact(p, [theta], ts)
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(**SMALL)
+def test_rotated_roi_classes_bracket_the_reference_states(seed, n, measure, mres, round_origin, modes, theta):
+    """The certificate's bound classes (four uncertified warps, merger.transform.rotated_roi_classes):
+    lo ≤ the reference's rotated state ≤ hi at every lattice point — centers anywhere in a cell or on its
+    borders, whole and tenth-degree angles, the ROI leaving the grid."""
+    p, _ = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=False)
+    for a in (theta, wrap_deg(theta + 0.1), wrap_deg(theta + 90.0), float(round(theta))):
+        exact = rotated_roi(p.moving, a, p.center_moving, None, p.n, RES).reshape(-1)
+        cls = rotated_roi_classes(p.moving, a, p.center_moving, p.n, RES)
+        if cls is None:  # the exact path decides (a lookup too close to call, or beyond the warp's range)
+            continue
+        lo, hi = cls
+        assert (lo <= exact).all() and (exact <= hi).all()
+
+
+def test_rotated_roi_classes_are_tight_on_a_map():
+    """On a generated room (ROI 160 cells, a center inside a cell) the bound classes are used (not None)
+    and leave the state open only at the lattice points whose lookup lies near a cell border: a few."""
+    rng = np.random.default_rng(5)
+    scene = room_scene(rng)
+    g, c = partial_view(scene, robot_pose_on_circle(90.0, 1.6), arc_viewpoints(90.0, 30.0, 1.6),
+                        size_m=10.0, rng=rng)
+    for theta in (0.0, 17.0, 123.4, 271.0):
+        exact = rotated_roi(g, theta, c, None, 160, RES).reshape(-1)
+        lo, hi = rotated_roi_classes(g, theta, c, 160, RES)
+        assert (lo <= exact).all() and (exact <= hi).all()
+        assert np.count_nonzero(lo != hi) < 0.02 * exact.size
 
 
 # The ROI lattice about c_ref + t leaving the reference grid (a reference grid narrower than the ROI plus

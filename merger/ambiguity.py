@@ -218,10 +218,11 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
     and unresolved the best alignment is returned with the record, whose ``used``
     is False: the caller does not use the pair."""
-    from .window import WindowEvaluator
+    from .window import evaluator_for
 
-    # one evaluator for both rivals (the translation rival always needs one when it can exist)
-    ev = WindowEvaluator(problem) if margin > 0 and problem.window_cells > 0 else None
+    # one evaluator for both rivals (the translation rival always needs one when it can exist): the
+    # search's own when it has just searched this problem
+    ev = evaluator_for(problem) if margin > 0 and problem.window_cells > 0 else None
     rivals = [r for r in (rival(problem, al, margin, ev), shift_rival(problem, al, margin, ev)) if r is not None]
     if not rivals:
         return al, None

@@ -493,6 +493,21 @@ class WindowEvaluator:
         return np.array(out, np.float64)
 
 
+_HANDOFF = threading.local()  # this thread's last windowed search: (problem, its evaluator)
+
+
+def evaluator_for(problem) -> WindowEvaluator:
+    """A :class:`WindowEvaluator` of ``problem``: the one this thread's last windowed search of that very
+    problem object used (taken once: its rotated ROIs and exact values serve the rivals of
+    :mod:`merger.ambiguity`, which evaluate the same problem right after it), else a new one. Its
+    values are the same floats either way (exact, deterministic)."""
+    last = getattr(_HANDOFF, "last", None)
+    _HANDOFF.last = None
+    if last is not None and last[0] is problem:
+        return last[1]
+    return WindowEvaluator(problem)
+
+
 # --- rotated moving ROIs, shared between searches --------------------------------------------------
 _ROT: OrderedDict = OrderedDict()
 _ROT_BYTES = [0]
@@ -712,6 +727,7 @@ def fast_window_search(problem, certify: bool = True):
     profile = cert.env.copy() if certify else approx.copy()
 
     best_value = best[0][0]
+    _HANDOFF.last = (problem, ev)
     al = Alignment(theta, float(values[kf]), lambda: sev.similarity(fine[kf]).counts, problem.measure,
                    "fast" if certify else "climb", problem.roi_m, profile, lambda: runner_up(approx, theta),
                    window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,

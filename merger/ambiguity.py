@@ -165,7 +165,8 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     out = Alignment(theta, score, sev.similarity(float(angles[kf])).counts, al.measure, al.method, al.roi_m, al.profile,
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
-                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)))
+                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)),
+                    evidence={"profile": al.evidence["profile"], "runner_up": "exact"})
     return refine_alignment(problem, out, ev) if problem.refine else out
 
 

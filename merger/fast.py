@@ -623,7 +623,7 @@ def fast_search(problem: RotationProblem) -> Alignment:
             return ev.similarity(fine[k]).counts
 
     return Alignment(theta, score, counts, problem.measure, "fast", problem.roi_m, profile, runner_up,
-                     fine=values)
+                     fine=values, evidence={"profile": "upper_envelope", "runner_up": "exact"})
 
 
 class _FineValues:

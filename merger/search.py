@@ -101,6 +101,12 @@ class Alignment:
     counts : agr̃, dis and free/free at ``theta_deg`` on the ROI.
     profile : coarse scores at 0°, 1°, ..., 359°.
     runner_up_deg, runner_up_score : best coarse angle at least 10° away from ``theta_deg``.
+    evidence : how exact the profile and the runner-up are — ``{"profile": "exact" | "upper_envelope" |
+        "approximate", "runner_up": "exact" | "approximate"}``: the reference searches give both exactly;
+        rotation-only ``fast`` an exact runner-up and a profile that is an upper envelope (exact where
+        evaluated, a true upper bound elsewhere); windowed ``fast`` the same profile and an approximate
+        runner-up (:func:`merger.window.exact_window_runner_up` computes it exactly); ``climb``
+        approximate both. θ, t, the score and the counts are exact for every method but ``climb``.
 
     A search may hand over the counts and the runner-up as callables (arguments ``_counts`` and
     ``_runner_up``), each called once, on first access: a merge cycle decides on θ and the score
@@ -124,6 +130,7 @@ class Alignment:
     grid_theta_deg: float | None = None
     grid_translation_m: tuple[float, float] | None = None
     _beyond: tuple | None | Callable[[], tuple | None] = field(default=None, repr=False)
+    evidence: dict = field(default_factory=lambda: {"profile": "exact", "runner_up": "exact"})
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_lock", threading.Lock())
@@ -202,6 +209,7 @@ class Alignment:
             "agree": self.counts.agree, "disagree": self.counts.disagree,
             "support": self.counts.support,
             "runner_up_deg": self.runner_up_deg, "runner_up_score": self.runner_up_score,
+            "evidence": dict(self.evidence),
             "beyond": None if self.beyond is None else {"theta_deg": self.beyond[0],
                                                         "translation_m": list(self.beyond[1]),
                                                         "score": self.beyond[2]},

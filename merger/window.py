@@ -732,7 +732,8 @@ def fast_window_search(problem, certify: bool = True):
                    "fast" if certify else "climb", problem.roi_m, profile, lambda: runner_up(approx, theta),
                    window_m=problem.window_m, translation_m=problem.offset_m(*tc), cells=tc,
                    fine=(np.asarray(fine), np.asarray(values, np.float64)),
-                   _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)))
+                   _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)),
+                   evidence={"profile": "upper_envelope" if certify else "approximate", "runner_up": "approximate"})
     return refine_alignment(problem, al, ev) if problem.refine else al
 
 

@@ -49,7 +49,7 @@ from merger.transform import (
     rotation,
 )
 from merger.verify import verify
-from merger.window import WindowEvaluator, translation_offsets, window_cells
+from merger.window import WindowEvaluator, exact_window_runner_up, translation_offsets, window_cells
 from tests.conftest import three_views
 
 REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
@@ -620,6 +620,26 @@ def _grid_cases():
     # the truth beyond the window (error 1.6 × W): the grid answer on the window's edge
     out.append(window_case(4, "views", roi_m=(6.0, 6.0), window_m=(0.3, 0.3), error_frac=1.6))
     return out
+
+
+def test_each_method_names_how_exact_its_profile_and_runner_up_are():
+    """Alignment.evidence (issue 11: runner-up and profile exact, or named approximate in the API): the
+    reference searches exact; fast an upper-envelope profile, its runner-up exact without a window and
+    approximate with one; climb approximate. The JSON record carries it, and the exact windowed runner-up
+    is available on demand (it equals the reference's)."""
+    c = _grid_cases()[0]
+    want = {("reference", 0.0): ("exact", "exact"), ("fast", 0.0): ("upper_envelope", "exact"),
+            ("reference", 0.2): ("exact", "exact"), ("fast", 0.2): ("upper_envelope", "approximate"),
+            ("climb", 0.2): ("approximate", "approximate")}
+    roi = 3.2  # a small ROI: the windowed reference stays cheap
+    for (method, w), (profile, ru) in want.items():
+        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, roi, "similarity", w, refine=False)
+        al = search(p, method)
+        assert al.evidence == {"profile": profile, "runner_up": ru}, (method, w)
+        assert al.to_dict()["evidence"] == al.evidence
+        if (method, w) == ("fast", 0.2):
+            ref = search(p, "reference")
+            assert exact_window_runner_up(p, al.theta_deg) == ref.runner_up
 
 
 def test_grid_answer_and_refinement_bounds():

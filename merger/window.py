@@ -260,6 +260,7 @@ class WindowEvaluator:
         self._mov: dict[float, np.ndarray] = {}
         self._movb: dict[float, tuple] = {}  # per angle: bound classes (moving_bounds)
         self._lut = None
+        self._blocks = None  # (_similarity_blocks' tables)
         self._dig = None
         self.values: dict[float, np.ndarray] = {}  # per angle: values by (b, a) + reach (NaN: not yet)
 
@@ -386,10 +387,39 @@ class WindowEvaluator:
         miss = np.isnan(out)
         if miss.any():
             self.moving([theta])
-            todo = np.stack([a[miss], b[miss]], axis=1)  # distinct: callers pass distinct translations
-            tab[todo[:, 1] + self.reach, todo[:, 0] + self.reach] = self._values(theta, todo)
+            ma, mb = ia[miss], ib[miss]  # distinct: callers pass distinct translations
+            vals = self._similarity_blocks(theta, ma, mb) if self.problem.measure == "similarity" else None
+            if vals is None:
+                vals = self._values(theta, np.stack([a[miss], b[miss]], axis=1))
+            tab[mb, ma] = vals
             out = tab[ib, ia]
         return out
+
+    def _similarity_blocks(self, theta: float, ia: np.ndarray, ib: np.ndarray):
+        """:meth:`_similarity_values` for translation indices (``ia``, ``ib``) = (a, b) + reach, with
+        per-evaluator tables (each window's first padded cell, its offset in the moving-free image) and
+        one gather of a code image (occupied 1, free 2³²: agr̃ and the moving-occupied half of dis in one
+        sum); None unless every window is a plain block. The same integer counts and division."""
+        if ia.min() < 0 or ib.min() < 0 or ia.max() > 2 * self.reach or ib.max() > 2 * self.reach:
+            return None  # (_values raises the error)
+        if self._blocks is None:
+            (_, cb, cf, _), (_, rb, rf, _) = self._tab
+            self._occupied_cells()
+            m, wp = self._margin, self._pad.shape[1]
+            code = np.zeros(256, np.int64)
+            code[OCCUPIED_S], code[FREE_S] = 1, 1 << 32
+            self._blocks = (rb[:, None] & cb[None, :], rf[:, None] * wp + cf[None, :],
+                            (rf[:, None] - m) * (self.n + 2 * m) + (cf[None, :] - m), code[self._pad].reshape(-1))
+        ok, base, shift, padcode = self._blocks
+        if not ok[ib, ia].all():
+            return None
+        (_, _, pflat), mfp, _ = self._mov[theta]
+        s = padcode[base[ib, ia][:, None] + pflat[None, :]].sum(axis=1)
+        agr = s & 0xFFFFFFFF
+        tot = agr + (s >> 32)
+        if self._q.size:  # the reference-occupied cells of each window against the moving free cells
+            tot += np.count_nonzero(mfp[self._q[None, :] - shift[ib, ia][:, None]], axis=1)
+        return np.where(tot > 0, agr / np.maximum(tot, 1), 0.0)
 
     def counts(self, theta: float, t) -> Counts:
         self.moving([theta])

@@ -268,11 +268,7 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
         inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
         cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
         out[i, j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
-    key = (n, float(resolution), float(theta_deg))
-    outside = _OUTSIDE.get(key)
-    if outside is None:
-        outside = _outside_square(n, resolution, float(theta_deg))
-        _OUTSIDE.put(key, outside)
+    outside = _outside_cached(n, resolution, theta_deg)
     if outside.size and outside[0] < 0:
         return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
     out.reshape(-1)[outside] = UNKNOWN_S
@@ -303,11 +299,7 @@ def rotated_roi_classes(moving: OccupancyGrid, theta_deg: float, center_moving, 
     c0 = (center_moving[1] - moving.origin[1] + r[1, 0] * k[0]) / rm + r[1, 1] * k[0] / rm
     if not max(abs(a0), abs(c0)) + 2 * (n - 1) * resolution / rm < _WARP_MAX_COORD:
         return None
-    key = (n, float(resolution), float(theta_deg))
-    outside = _OUTSIDE.get(key)
-    if outside is None:
-        outside = _outside_square(n, resolution, float(theta_deg))
-        _OUTSIDE.put(key, outside)
+    outside = _outside_cached(n, resolution, theta_deg)
     if outside.size and outside[0] < 0:
         return None
     step = resolution / rm
@@ -331,6 +323,16 @@ def rotated_roi_classes(moving: OccupancyGrid, theta_deg: float, center_moving, 
 
 
 _OUTSIDE = BoundedCache(max_entries=720, max_bytes=16 * 2**20)
+
+
+def _outside_cached(n: int, resolution: float, theta_deg: float) -> np.ndarray:
+    """:func:`_outside_square` from the bounded cache :data:`_OUTSIDE` (shared by every map's searches)."""
+    key = (n, float(resolution), float(theta_deg))
+    outside = _OUTSIDE.get(key)
+    if outside is None:
+        outside = _outside_square(n, resolution, float(theta_deg))
+        _OUTSIDE.put(key, outside)
+    return outside
 
 
 def _outside_square(n: int, resolution: float, theta_deg: float) -> np.ndarray:

@@ -412,7 +412,8 @@ class Certifier:
 
     def _angle(self, th: int, rects) -> None:
         """Every translation of the boxes ``rects`` at the coarse angle θ: each box is bounded with θ's
-        exact rotated ROI, and its translations are evaluated exactly unless the bound excludes them."""
+        rotated ROI (for ω̃ bounds of its states, no certified rotation), and its translations are
+        evaluated exactly (with the exact rotated ROI) unless the bound excludes them."""
         theta = float(th)
         if self.problem.measure != "similarity":  # ω̃'s box bounds need only bound classes (moving_bounds)
             self.ev.moving([theta])

@@ -166,7 +166,8 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
                     _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)),
-                    evidence={"profile": al.evidence["profile"], "runner_up": "exact"})
+                    evidence={"profile": al.evidence["profile"],  # the rival's runner-up is al itself
+                              "runner_up": "approximate" if al.method == "climb" else "exact"})
     return refine_alignment(problem, out, ev) if problem.refine else out
 
 

@@ -387,21 +387,18 @@ class WindowEvaluator:
         miss = np.isnan(out)
         if miss.any():
             self.moving([theta])
-            ma, mb = ia[miss], ib[miss]  # distinct: callers pass distinct translations
-            vals = self._similarity_blocks(theta, ma, mb) if self.problem.measure == "similarity" else None
-            if vals is None:
-                vals = self._values(theta, np.stack([a[miss], b[miss]], axis=1))
-            tab[mb, ma] = vals
+            todo = np.stack([a[miss], b[miss]], axis=1)  # distinct: callers pass distinct translations
+            tab[ib[miss], ia[miss]] = self._values(theta, todo)
             out = tab[ib, ia]
         return out
 
     def _similarity_blocks(self, theta: float, ia: np.ndarray, ib: np.ndarray):
-        """:meth:`_similarity_values` for translation indices (``ia``, ``ib``) = (a, b) + reach, with
-        per-evaluator tables (each window's first padded cell, its offset in the moving-free image) and
-        one gather of a code image (occupied 1, free 2³²: agr̃ and the moving-occupied half of dis in one
-        sum); None unless every window is a plain block. The same integer counts and division."""
-        if ia.min() < 0 or ib.min() < 0 or ia.max() > 2 * self.reach or ib.max() > 2 * self.reach:
-            return None  # (_values raises the error)
+        """ω̃ at angle θ and translation indices (``ia``, ``ib``) = (a, b) + reach (checked in reach) when
+        every window is a plain block of the padded reference (the usual case; None otherwise):
+        :meth:`_counts`'s gathers, fewer steps — per-evaluator tables (each window's first padded cell,
+        its offset in the moving-free image) and one gather of a code image (occupied 1, free 2³²: agr̃
+        and the moving-occupied half of dis in one sum). The floats are
+        :func:`merger.similarity.index_from_counts`'s: integer counts, one correctly rounded division."""
         if self._blocks is None:
             (_, cb, cf, _), (_, rb, rf, _) = self._tab
             self._occupied_cells()
@@ -485,28 +482,10 @@ class WindowEvaluator:
             raise ValueError(f"a translation of {ts.tolist()} cells is outside the evaluator's reach ±{kk}")
         return ia, ib
 
-    def _similarity_values(self, theta: float, ts):
-        """ω̃ at angle θ and translations ``ts`` when every window is a plain block of the padded
-        reference (the usual case; None otherwise): :meth:`_counts`'s gathers, fewer steps. The floats
-        are :func:`merger.similarity.index_from_counts`'s: integer counts, one correctly rounded division."""
-        (_, cb, cf, _), (_, rb, rf, _) = self._tab
-        ia, ib = self._indices(ts)
-        if not (cb[ia] & rb[ib]).all():
-            return None
-        (_, _, pflat), mfp, _ = self._mov[theta]
-        st = self._padflat[(rf[ib] * self._pad.shape[1] + cf[ia])[:, None] + pflat[None, :]]
-        agr = (st == OCCUPIED_S).sum(axis=1)
-        tot = agr + (st == FREE_S).sum(axis=1)
-        if self._q.size:  # the reference-occupied cells of each window against the moving free cells
-            m = self._margin
-            shift = (rf[ib] - m) * (self.n + 2 * m) + (cf[ia] - m)
-            tot += mfp[self._q[None, :] - shift[:, None]].sum(axis=1)
-        return np.where(tot > 0, agr / np.maximum(tot, 1), 0.0)
-
     def _values(self, theta: float, ts) -> list[float]:
         m = self.problem.measure
         if m == "similarity":
-            fast = self._similarity_values(theta, ts)
+            fast = self._similarity_blocks(theta, *self._indices(ts))
             if fast is not None:
                 return fast
         agr, d_mo, d_ro, ff, sx, sy = self._counts(theta, ts, free_agree=m == "birk_carpin")

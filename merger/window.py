@@ -383,6 +383,10 @@ class WindowEvaluator:
         if tab is None:
             tab = self.values[theta] = np.full((2 * self.reach + 1, 2 * self.reach + 1), np.nan)
         ia, ib = a + self.reach, b + self.reach
+        if ia.size and (min(ia.min(), ib.min()) < 0 or max(ia.max(), ib.max()) > 2 * self.reach):
+            # checked before the table is read: a negative index would wrap to another translation's value
+            raise ValueError(f"a translation of {np.stack([a, b], axis=1).tolist()} cells is outside the "
+                             f"evaluator's reach ±{self.reach}")
         out = tab[ib, ia]
         miss = np.isnan(out)
         if miss.any():

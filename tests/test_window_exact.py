@@ -142,3 +142,17 @@ def test_bounds_are_never_below_the_exact_values(kind, measure):
                 for th in (0, 17, 90, 181, 359):
                     ev.moving([float(th)])
                     assert cert._rect_bounds(float(th), [rect])[0] >= best[th], (rect, th, measure)
+
+
+def test_the_evaluator_refuses_translations_beyond_its_reach_even_after_caching():
+    """A translation outside ±reach is an error, also once the table holds values: a negative index
+    must not wrap to another translation's cached value."""
+    c = window_case(2, "views", roi_m=(2.0, 2.0), window_m=(0.2, 0.2))
+    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity", c.window_m)
+    ev = WindowEvaluator(p)
+    r = ev.reach
+    inside = [(a, b) for b in range(-r, r + 1) for a in range(-r, r + 1)]
+    ev.evaluate(10.0, inside)  # every value of angle 10° cached
+    for bad in ((-r - 1, 0), (0, r + 1), (r + 1, -r - 1)):
+        with pytest.raises(ValueError, match="outside the evaluator's reach"):
+            ev.evaluate(10.0, [bad])

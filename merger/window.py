@@ -262,6 +262,7 @@ class WindowEvaluator:
         self._lut = None
         self._blocks = None  # (_similarity_blocks' tables)
         self._dig = None
+        self._inv = None  # (_inverse_axes' tables)
         self.values: dict[float, np.ndarray] = {}  # per angle: values by (b, a) + reach (NaN: not yet)
 
     def _digest(self) -> bytes:
@@ -464,18 +465,66 @@ class WindowEvaluator:
                 rr = rows[c0:c0 + step]
                 st = self._padflat[(rf[ib[rr]] * wp + cf[ia[rr]])[:, None] + fflat[None, :]]
                 ff[rr] = np.count_nonzero(st == FREE_S, axis=1)
-        if not block.all():
-            padO2 = (self._pad == OCCUPIED_S)
-            padF2 = (self._pad == FREE_S)
-            mf = (mov == FREE_S).reshape(n, n)
-            for r in np.flatnonzero(~block).tolist():  # not a plain block (float ties in the lattice): densely
-                rw, cl = rows_t[ib[r]], cols_t[ia[r]]
-                ro = padO2[np.ix_(rw, cl)]
-                sx[r] = np.count_nonzero(ro)
-                d_ro[r] = np.count_nonzero(ro & mf)
-                if free_agree:
-                    ff[r] = np.count_nonzero(padF2[np.ix_(rw, cl)] & mf)
+        if not block.all():  # not plain blocks (float ties in the lattice: centers on cell borders)
+            self._counts_general(theta, ia, ib, ~block, d_ro, ff, sx, free_agree)
         return agr, d_mo, d_ro, ff, sx, pflat.size
+
+    def _inverse_axes(self):
+        """Per translation index and axis, for every padded reference row (column) r: the lattice indices
+        [first, last) whose ROI row (column) is r. The ROI's rows are floors of increasing values —
+        correctly rounded sums and quotients are monotone — so they never decrease, and the lattice points
+        that read the padded cell (r, c) at translation t are exactly the rectangle [first_r, last_r) ×
+        [first_c, last_c) (empty when t's ROI does not hold the cell)."""
+        if self._inv is None:
+            (cols_t, _, _, _), (rows_t, _, _, _) = self._axes_table()
+            hp, wp = self._pad.shape
+            out = []
+            for idx, size in ((rows_t, hp), (cols_t, wp)):
+                if (np.diff(idx, axis=1) < 0).any():  # cannot happen (monotone arithmetic); kept as a guard
+                    raise AssertionError("the reference ROI's cell indices decrease along an axis")
+                r = np.arange(size + 1)
+                out.append((np.stack([np.searchsorted(row, r, "left") for row in idx]),
+                            np.stack([np.searchsorted(row, r, "right") for row in idx])))
+            (rf0, rl0), (cf0, cl0) = out
+            self._inv = (rf0, rl0, cf0, cl0)
+            # the occupied cells any window's ROI can hold (the others are read by no lattice point)
+            r0, r1, c0, c1 = int(rows_t.min()), int(rows_t.max()) + 1, int(cols_t.min()), int(cols_t.max()) + 1
+            qr, qc = np.nonzero(self._pad[r0:r1, c0:c1] == OCCUPIED_S)
+            self._q_rc = (qr + r0, qc + c0)
+        return self._inv
+
+    def _counts_general(self, theta: float, ia, ib, rows_sel, d_ro, ff, sx, free_agree: bool) -> None:
+        """:meth:`_counts` for the translations ``rows_sel`` whose reference ROI is not a plain block: the
+        reference-occupied cells against the moving free ones by a summed-area table of the moving-free
+        lattice (each padded cell is read by a rectangle of lattice points, :meth:`_inverse_axes`), the
+        free/free count by gathers over the moving-free points (integers: the reference's counts)."""
+        n = self.n
+        rf0, rl0, cf0, cl0 = self._inverse_axes()
+        qr, qc = self._q_rc
+        (cols_t, _, _, _), (rows_t, _, _, _) = self._axes_table()
+        (_, _, _), _, mov = self._mov[theta]
+        mf = (mov == FREE_S).reshape(n, n)
+        sat = np.zeros((n + 1, n + 1), np.int64)
+        sat[1:, 1:] = mf.cumsum(0).cumsum(1)
+        satf = sat.reshape(-1)
+        wp = self._pad.shape[1]
+        sel = np.flatnonzero(rows_sel)
+        step = max(1, FREE_CHUNK // max(qr.size, 1))
+        for c0 in range(0, sel.size, step):
+            rr = sel[c0:c0 + step]
+            i0, i1 = rf0[ib[rr]][:, qr], rl0[ib[rr]][:, qr]
+            j0, j1 = cf0[ia[rr]][:, qc], cl0[ia[rr]][:, qc]
+            d_ro[rr] = (satf[i1 * (n + 1) + j1] - satf[i0 * (n + 1) + j1] - satf[i1 * (n + 1) + j0]
+                        + satf[i0 * (n + 1) + j0]).sum(axis=1)
+            if self.problem.measure == "ncc":
+                sx[rr] = ((i1 - i0) * (j1 - j0)).sum(axis=1)
+        if free_agree:
+            fi, fj = np.divmod(np.flatnonzero(mf.reshape(-1)), n)
+            step = max(1, FREE_CHUNK // max(fi.size, 1))
+            for c0 in range(0, sel.size, step):
+                rr = sel[c0:c0 + step]
+                st = self._padflat[rows_t[ib[rr]][:, fi] * wp + cols_t[ia[rr]][:, fj]]
+                ff[rr] = np.count_nonzero(st == FREE_S, axis=1)
 
     def _indices(self, ts):
         """Indices into the axes table of translations ``ts`` [(a, b), ...] cells (checked in reach)."""

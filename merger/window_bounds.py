@@ -57,6 +57,7 @@ class BoxBounds:
         self.lay = sector_layout(big, self.res, sector_grain(n))
         self.measure = problem.measure
         self._mov: dict[float, dict] = {}
+        self._single = None  # ((a, b), the reference ROI of that single translation): the last one read
         (cols_t, cb, cf, _), (rows_t, rb, rf, _) = ev._axes_table()
         self.reach = ev.reach
         self.cb, self.cf, self.rb, self.rf = cb, cf, rb, rf
@@ -114,11 +115,31 @@ class BoxBounds:
                 return False
         return True
 
+    def boundable(self, box) -> bool:
+        """Whether the sector stage bounds the box: a consistent one, or a single translation (its ROI,
+        a plain block or not, is then the lattice itself: :meth:`_single_roi`)."""
+        return (box[2] == 0 and box[3] == 0) or self.consistent(box)
+
+    def _single_roi(self, a: int, b: int) -> np.ndarray:
+        """The reference ROI at translation (a, b) cells, as the reference reads it (per-axis indices
+        into the padded reference: :meth:`merger.window.WindowEvaluator._axis`); the last one is kept (a
+        box's classes are read one after the other; keeping all would cost n² bytes per translation)."""
+        if self._single is None or self._single[0] != (a, b):
+            rows, cols, _ = self.ev._axis(a, b)
+            self._single = ((a, b), self.ev._pad[np.ix_(rows, cols)])
+        return self._single[1]
+
     def _ids(self, pts, box, inner: bool):
         """Big-layout sector ids of the reference cells ``pts`` in the box's union of ROIs (``inner``:
         in the intersection of its ROIs), placed about the box's center."""
         a_c, b_c, s_a, s_b = box
         kk, n, k = self.reach, self.n, self.k
+        if s_a == 0 and s_b == 0 and not self.consistent(box):
+            # one translation whose ROI is not a plain block: its lattice points of the class of ``pts``
+            # (union = intersection = the ROI), the central n × n block of the big lattice about c_ref + t
+            state = OCCUPIED_S if pts is self.occ else FREE_S
+            i, j = np.nonzero(self._single_roi(a_c, b_c) == state)
+            return (i + k) * self.big + (j + k)
         rr = pts[0] - (int(self.rf[b_c + kk]) - k)  # rows of the big lattice about c_ref + t_c
         cc = pts[1] - (int(self.cf[a_c + kk]) - k)
         if inner:
@@ -132,8 +153,11 @@ class BoxBounds:
 
     def sx_values(self, a0: int, a1: int, b0: int, b1: int) -> np.ndarray:
         """The distinct values over a consistent box [a0, a1] × [b0, b1] of Σx(t), the reference-occupied
-        cells of ROI(t) (NCC), exactly (a summed-area table of the padded reference)."""
+        cells of ROI(t) (NCC), exactly (a summed-area table of the padded reference; a single translation
+        whose ROI is not a plain block: counted in it)."""
         kk, n = self.reach, self.n
+        if a0 == a1 and b0 == b1 and not self.consistent_rect(a0, a1, b0, b1):
+            return np.array([np.count_nonzero(self._single_roi(a0, b0) == OCCUPIED_S)])
         r = self.rf[np.arange(b0, b1 + 1) + kk].astype(np.intp)
         c = self.cf[np.arange(a0, a1 + 1) + kk].astype(np.intp)
         sat = self._sat
@@ -283,7 +307,7 @@ class Certifier:
         """Sector bounds of the boxes (kept: the runner-up's search reuses them); +inf where a box is not
         consistent (a 1 × 1 box whose ROI is not a plain block)."""
         todo = [b for b in dict.fromkeys(boxes) if b not in self._sector_cache]
-        ok = [b for b in todo if self.sectors.consistent(b)]
+        ok = [b for b in todo if self.sectors.boundable(b)]
         for b, v in zip(ok, self.sectors.bounds_many(ok), strict=True):
             self._sector_cache[b] = v
         self.stats["sector_boxes"] += len(ok)

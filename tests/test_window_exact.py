@@ -156,3 +156,52 @@ def test_the_evaluator_refuses_translations_beyond_its_reach_even_after_caching(
     for bad in ((-r - 1, 0), (0, r + 1), (r + 1, -r - 1)):
         with pytest.raises(ValueError, match="outside the evaluator's reach"):
             ev.evaluate(10.0, [bad])
+
+
+def _cell_centre_problem(measure: str, seed: int = 5) -> RotationProblem:
+    """A generated view against another with the reference center on a cell centre: with an even ROI
+    side every lattice point lies on a cell border, so no translation's ROI is a plain block."""
+    c = window_case(seed, "views", roi_m=(2.0, 2.0), window_m=(0.2, 0.2))
+    ref = c.ref
+    ox, oy = ref.origin
+    cx = ox + (round((c.center_ref[0] - ox) / RES - 0.5) + 0.5) * RES
+    cy = oy + (round((c.center_ref[1] - oy) / RES - 0.5) + 0.5) * RES
+    p = RotationProblem(ref, c.moving, (cx, cy), c.center_moving, c.roi_m, measure, c.window_m)
+    (_, cb, _, _), (_, rb, _, _) = WindowEvaluator(p)._axes_table()
+    assert not cb.any() and not rb.any(), "the case must have no plain-block ROI"
+    return p
+
+
+@pytest.mark.parametrize("measure", MEASURES)
+def test_values_where_no_roi_is_a_plain_block_are_the_references(measure):
+    """The evaluator's general path (centers on cell borders): every value equals the reference's."""
+    from merger.search import measure_fn
+
+    p = _cell_centre_problem(measure)
+    fn = measure_fn(measure)
+    ev = WindowEvaluator(p)
+    k = p.window_cells
+    ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
+    for th in (0.0, 33.0, 180.0, 271.0):
+        got = ev.evaluate(th, ts)
+        mov = p.moving_roi(th)
+        want = [fn(p.at(a, b).ref_roi(), mov).value for a, b in ts]
+        assert got.tolist() == want, (measure, th)
+
+
+@pytest.mark.parametrize("measure", MEASURES)
+def test_single_translation_sector_bounds_hold_where_no_roi_is_a_plain_block(measure):
+    """The sector stage bounds single translations whose ROI is not a plain block (their ROI read
+    densely): never below the exact values, at every angle; the search stays the reference's."""
+    p = _cell_centre_problem(measure)
+    k = p.window_cells
+    ev = WindowEvaluator(p)
+    bb = BoxBounds(p, ev)
+    for a, b in ((0, 0), (-k, k), (1, -1)):
+        box = (a, b, 0, 0)
+        assert bb.boundable(box) and not bb.consistent(box)
+        ub = bb.bounds(box)
+        exact = np.array([ev.evaluate(float(th), [(a, b)])[0] for th in range(360)])
+        assert (ub >= exact).all(), (measure, a, b)
+        assert np.isfinite(ub).all() and (ub < 1.0).any()  # real bounds, not "no bound"
+    assert_exact(p)

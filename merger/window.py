@@ -248,11 +248,15 @@ class WindowEvaluator:
         ref = problem.ref
         self.reach = problem.window_cells + 1  # translations evaluated: |a|, |b| ≤ reach (the window and
         self._tab = None                       # one cell beyond, for the refinement at its edge)
-        # the reference padded with unknown cells so that every window's ROI lies inside: a shifted
-        # block of it is then a plain slice (no clipping), whatever the map's size
-        (_, _, _, (plo_x, phi_x)), (_, _, _, (plo_y, phi_y)) = self._axes_table()
-        self._pad = np.zeros((ref.height + plo_y + phi_y, ref.width + plo_x + phi_x), np.uint8)
-        self._pad[plo_y:plo_y + ref.height, plo_x:plo_x + ref.width] = ref.states
+        # the part of the reference that the windows' ROIs read, padded with unknown cells so that every
+        # window's ROI lies inside: a shifted block of it is then a plain slice (no clipping); its size
+        # follows the ROI and the window, not the map's (a 200 m map costs what a 10 m one does)
+        (_, _, _, (sx, lx)), (_, _, _, (sy, ly)) = self._axes_table()
+        self._pad = np.zeros((ly, lx), np.uint8)
+        y0, y1 = max(sy, 0), min(sy + ly, ref.height)
+        x0, x1 = max(sx, 0), min(sx + lx, ref.width)
+        if y0 < y1 and x0 < x1:
+            self._pad[y0 - sy:y1 - sy, x0 - sx:x1 - sx] = ref.states[y0:y1, x0:x1]
         self._padO = (self._pad == OCCUPIED_S).reshape(-1)
         self._padflat = self._pad.reshape(-1)
         self._q = None
@@ -273,20 +277,22 @@ class WindowEvaluator:
     def _axes_table(self):
         """Per translation index −K..K: the padded reference columns (rows) of the ROI lattice about
         c_ref + t, with the reference's own arithmetic (:meth:`RotationProblem.center_at`, extract_roi),
-        whether they form plain blocks, their first ones, and the padding (before, after) that holds
-        every one of them (cells outside the grid are unknown, as extract_roi reads them)."""
+        whether they form plain blocks, their first ones, and the padded part (the grid's first cell in
+        it, its length): every index one cell or more from its ends (cells outside the grid are unknown,
+        as extract_roi reads them; integer shifts of the reference's own indices)."""
         if self._tab is None:
             ref, kk = self.problem.ref, self.reach
             steps = np.arange(-kk, kk + 1) * ref.resolution  # a · res, as offset_m
             cx, cy = self.problem.center_ref
             out = []
-            for c, o, size in ((cx, ref.origin[0], ref.width), (cy, ref.origin[1], ref.height)):
+            for c, o in ((cx, ref.origin[0]), (cy, ref.origin[1])):
                 cs = c + steps
                 cs[kk] = c  # t = 0 is the given center itself
                 idx = np.floor((cs[:, None] + self.k[None, :] - o) / ref.resolution).astype(np.int64)
                 block = (np.diff(idx, axis=1) == 1).all(axis=1)
-                lo, hi = max(1, -int(idx.min())), max(1, int(idx.max()) - size + 1)
-                out.append((idx + lo, block, idx[:, 0] + lo, (lo, hi)))
+                shift = int(idx.min()) - 1  # grid cell of padded index 0
+                idx -= shift
+                out.append((idx, block, idx[:, 0], (shift, int(idx.max()) + 2)))
             self._tab = out
         return self._tab
 

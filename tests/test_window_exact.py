@@ -205,3 +205,23 @@ def test_single_translation_sector_bounds_hold_where_no_roi_is_a_plain_block(mea
         assert (ub >= exact).all(), (measure, a, b)
         assert np.isfinite(ub).all() and (ub < 1.0).any()  # real bounds, not "no bound"
     assert_exact(p)
+
+
+def test_the_evaluator_reads_only_the_part_of_a_large_map_its_windows_cover():
+    """A 50 m map, ROI 2 m: the evaluator's padded reference is the windows' part (its size follows the ROI
+    and the window, not the map), and its values are still the reference's."""
+    from merger.search import measure_fn
+
+    rng = np.random.default_rng(3)
+    states = rng.choice(3, size=(1000, 1000), p=[0.3, 0.5, 0.2]).astype(np.uint8)
+    g = OccupancyGrid(states, RES, (-25.0, -25.0))
+    p = RotationProblem(g, g, (3.013, -7.31), (3.0, -7.3), 2.0, "similarity", 0.2)
+    ev = WindowEvaluator(p)
+    span = p.n + 2 * ev.reach + 2
+    assert ev._pad.shape[0] <= span + 1 and ev._pad.shape[1] <= span + 1
+    fn = measure_fn("similarity")
+    k = p.window_cells
+    ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
+    for th in (0.0, 47.0):
+        mov = p.moving_roi(th)
+        assert ev.evaluate(th, ts).tolist() == [fn(p.at(a, b).ref_roi(), mov).value for a, b in ts]

@@ -58,8 +58,11 @@ containing c_m + R(−θ)k (unknown outside the moving ROI's square); M_θ does 
 translations [a0, a1] × [b0, b1] is *consistent* when every R_t is a plain block of the evaluator's padded
 reference whose first row and column advance by exactly one cell per cell of translation; then
 R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). A box that is not (float ties in the
-reference lattice: centers on cell borders) is cut into single translations; a translation whose ROI is
-not a plain block gets no bound at all — it is evaluated exactly at every angle.
+reference lattice: centers on cell borders) is cut into single translations. A single translation's box
+needs no consistency: U = I = its own ROI (whatever rows and columns of the reference it reads, as the
+reference reads them) and ρ = 0, so the sector bounds below are :mod:`merger.fast`'s rotation-only ones
+for that ROI; such a translation gets no box bound in stage (b) and is evaluated exactly at every angle
+its sector bound keeps.
 
 * *Sector bounds* (a). Let t_c be the box's center (boxes have odd sides) and s = (s_a, s_b) its
   half-sides. Every lattice point of R_t is a point x = k + δ of the union lattice U (side n + 2s) about

@@ -304,8 +304,9 @@ class Certifier:
 
     # --- stage A: sector bounds for all angles over boxes of translations --------------------------
     def _sectors(self, boxes: list) -> list[np.ndarray]:
-        """Sector bounds of the boxes (kept: the runner-up's search reuses them); +inf where a box is not
-        consistent (a 1 × 1 box whose ROI is not a plain block)."""
+        """Sector bounds of the boxes (kept: the runner-up's search reuses them); +inf where a box has
+        none (neither consistent nor a single translation — :meth:`run` cuts those — or a correlation
+        that did not come out integral)."""
         todo = [b for b in dict.fromkeys(boxes) if b not in self._sector_cache]
         ok = [b for b in todo if self.sectors.boundable(b)]
         for b, v in zip(ok, self.sectors.bounds_many(ok), strict=True):

@@ -58,6 +58,7 @@ class BoxBounds:
         self.measure = problem.measure
         self._mov: dict[float, dict] = {}
         self._single = None  # ((a, b), the reference ROI of that single translation): the last one read
+        self._loose_cache: dict = {}  # box -> its geometry when its ROIs are not plain blocks (_loose)
         (cols_t, cb, cf, _), (rows_t, rb, rf, _) = ev._axes_table()
         self.reach = ev.reach
         self.cb, self.cf, self.rb, self.rf = cb, cf, rb, rf
@@ -116,9 +117,75 @@ class BoxBounds:
         return True
 
     def boundable(self, box) -> bool:
-        """Whether the sector stage bounds the box: a consistent one, or a single translation (its ROI,
-        a plain block or not, is then the lattice itself: :meth:`_single_roi`)."""
-        return (box[2] == 0 and box[3] == 0) or self.consistent(box)
+        """Whether the sector stage bounds the box: a consistent one, a single translation (its ROI, a
+        plain block or not, is then the lattice itself: :meth:`_single_roi`), or a box whose ROIs are not
+        plain blocks but whose cells all fit the big lattice (:meth:`_loose`)."""
+        return (box[2] == 0 and box[3] == 0) or self.consistent(box) or self._loose(box) is not None
+
+    def grow_of(self, box) -> float:
+        """The displacement radius (cells) of a boundable box's sector bounds: ‖(s_a, s_b)‖ for a
+        consistent box, 0 for a single translation, the measured one of a loose box (:meth:`_loose`)."""
+        a_c, b_c, s_a, s_b = box
+        if s_a == 0 and s_b == 0:
+            return 0.0
+        if self.consistent(box):
+            return math.hypot(s_a, s_b)
+        return self._loose(box)["grow"]
+
+    def _loose(self, box):
+        """A box of translations whose ROIs are not plain blocks (centers on cell borders: a ROI reads
+        some reference row or column twice and skips another), bounded as a box all the same.
+
+        Per axis (rows; columns alike), translation b of the box reads padded rows R_b[i], i = 0..n−1.
+        Place padded row r at big-lattice row pos(r) = r − (rf(b_c) − K), as for a consistent box. Lattice
+        row i of translation b sits at big row p = i + K + (b − b_c) (its offset from c_ref + t is
+        kbig[p] − δ), and the cell it reads sits at pos(R_b[i]) = p + dev_b(i). So its lookup offset is
+        kbig[pos] − (dev_b(i) + δ)·cell: within ρ' = ‖(max |dev + δ_b|, max |dev + δ_a|)‖ cells of the
+        cell's own position — the consistent box's argument with ρ replaced by ρ'. A cell read at
+        translation t by several lattice points (a repeated row or column) counts that many times in
+        agr̃ (and free/free): the union's cells are weighted by the largest such number over the box
+        (row count × column count). The intersection (cells every ROI of the box reads: the rows all the
+        R_b hold × the columns all the C_a hold) counts once per cell — distinct cells are read by
+        distinct lattice points — which bounds dis from below. None when a cell's position falls off the
+        big lattice (then the box is cut into single translations)."""
+        key = tuple(box)
+        if key in self._loose_cache:
+            return self._loose_cache[key]
+        a_c, b_c, s_a, s_b = box
+        kk, k, big = self.reach, self.k, self.big
+        (cols_t, _, _, _), (rows_t, _, _, _) = self.ev._axes_table()
+        out = {}
+        for name, tab, first, c, s in (("r", rows_t, self.rf, b_c, s_b), ("c", cols_t, self.cf, a_c, s_a)):
+            base = int(first[c + kk]) - k
+            sub = tab[c - s + kk:c + s + kk + 1]  # (2s + 1, n): the padded rows of each translation
+            p = np.arange(self.n)[None, :] + k + np.arange(-s, s + 1)[:, None]  # the lattice rows' big rows
+            pos = sub - base
+            if pos.min() < 0 or pos.max() >= big:
+                self._loose_cache[key] = None
+                return None
+            disp = int(np.abs(pos - p + np.arange(-s, s + 1)[:, None]).max())  # max |dev + δ|
+            lo = int(sub.min())
+            mult = np.zeros((sub.shape[0], int(sub.max()) - lo + 1), np.int64)
+            np.add.at(mult, (np.repeat(np.arange(sub.shape[0]), self.n), (sub - lo).reshape(-1)), 1)
+            out[name] = (base, lo, mult.max(axis=0), (mult > 0).all(axis=0), disp)
+        out["grow"] = math.hypot(out["r"][4], out["c"][4])
+        self._loose_cache[key] = out
+        return out
+
+    def _loose_ids(self, pts, box, inner: bool):
+        """(big-layout ids, weights) of the reference cells ``pts`` in a loose box's union (weighted by
+        their largest read count) or intersection (weight 1): :meth:`_loose`."""
+        g = self._loose(box)
+        keep = np.ones(pts[0].size, bool)
+        w = np.ones(pts[0].size)
+        for v, (_, lo, mult, every, _) in zip(pts, (g["r"], g["c"]), strict=True):
+            j = v - lo
+            ok = (j >= 0) & (j < mult.size)
+            jj = np.where(ok, j, 0)
+            keep &= ok & (every[jj] if inner else mult[jj] > 0)
+            w *= mult[jj]
+        rr, cc = pts[0][keep] - g["r"][0], pts[1][keep] - g["c"][0]
+        return rr * self.big + cc, (None if inner else w[keep])
 
     def _single_roi(self, a: int, b: int) -> np.ndarray:
         """The reference ROI at translation (a, b) cells, as the reference reads it (per-axis indices
@@ -158,6 +225,12 @@ class BoxBounds:
         kk, n = self.reach, self.n
         if a0 == a1 and b0 == b1 and not self.consistent_rect(a0, a1, b0, b1):
             return np.array([np.count_nonzero(self._single_roi(a0, b0) == OCCUPIED_S)])
+        if not self.consistent_rect(a0, a1, b0, b1):  # a loose box: each ROI's count, read counts included
+            rf0, rl0, cf0, cl0 = self.ev._inverse_axes()
+            qr, qc = self.ev._q_rc
+            mr = rl0[np.arange(b0, b1 + 1) + kk][:, qr] - rf0[np.arange(b0, b1 + 1) + kk][:, qr]
+            mc = cl0[np.arange(a0, a1 + 1) + kk][:, qc] - cf0[np.arange(a0, a1 + 1) + kk][:, qc]
+            return np.unique(mr @ mc.T)
         r = self.rf[np.arange(b0, b1 + 1) + kk].astype(np.intp)
         c = self.cf[np.arange(a0, a1 + 1) + kk].astype(np.intp)
         sat = self._sat
@@ -171,13 +244,13 @@ class BoxBounds:
         if a correlation does not come out integral: never seen)."""
         out: list = [None] * len(boxes)
         groups: dict = {}
-        for i, (_, _, s_a, s_b) in enumerate(boxes):
-            groups.setdefault((s_a, s_b), []).append(i)
-        for (s_a, s_b), members in groups.items():
+        for i, box in enumerate(boxes):
+            groups.setdefault(self.grow_of(box), []).append(i)
+        for grow, members in groups.items():
             for c0 in range(0, len(members), BOX_CHUNK):
                 part = members[c0:c0 + BOX_CHUNK]
                 try:
-                    vals = self._bounds_group([boxes[i] for i in part], math.hypot(s_a, s_b))
+                    vals = self._bounds_group([boxes[i] for i in part], grow)
                 except _Inexact:
                     vals = np.full((len(part), 360), np.inf)
                 for i, v in zip(part, vals, strict=True):
@@ -193,11 +266,17 @@ class BoxBounds:
         if m == "birk_carpin":
             kinds += [(self.free, False), (self.free, True)]
         nk = len(kinds)
-        ids = [self._ids(pts, box, inner) for box in boxes for pts, inner in kinds]
+        ids, weights = [], []
+        for box in boxes:
+            loose = (box[2] or box[3]) and not self.consistent(box)
+            for pts, inner in kinds:
+                i, w = self._loose_ids(pts, box, inner) if loose else (self._ids(pts, box, inner), None)
+                ids.append(i)
+                weights.append(np.ones(i.size) if w is None else w)
         offs = np.repeat(np.arange(nb * nk) * size, [x.size for x in ids])
         allids = np.concatenate(ids) if ids else np.empty(0, np.intp)
         hist = _zeroed(nb * nk * size)  # counts, exact in float64
-        np.add.at(hist, lay.lattice_row_id.take(allids) + offs, 1.0)
+        np.add.at(hist, lay.lattice_row_id.take(allids) + offs, np.concatenate(weights) if weights else 1.0)
         spec = sfft.rfft(hist.reshape(nb, nk, lay.rows, 360), axis=-1)
 
         def corr(j, name):
@@ -333,7 +412,7 @@ class Certifier:
         boxes = []
         for box in [(ac, bc, sa, sb) for bc, sb in parts for ac, sa in parts]:
             a_c, b_c, s_a, s_b = box
-            if (s_a or s_b) and not self.sectors.consistent(box):  # (float ties in the lattice) one by one
+            if (s_a or s_b) and not self.sectors.boundable(box):  # (float ties in the lattice) one by one
                 boxes += [(a, b, 0, 0) for b in range(b_c - s_b, b_c + s_b + 1) for a in range(a_c - s_a, a_c + s_a + 1)]
             else:
                 boxes.append(box)

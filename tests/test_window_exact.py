@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from merger.grid import OccupancyGrid
+from merger.grid import OCCUPIED_S, OccupancyGrid
 from merger.search import RotationProblem, search
 from merger.synthetic import window_case
 from merger.window import WindowEvaluator, _tie_rank, exact_window_runner_up, reference_window_search
@@ -225,3 +225,61 @@ def test_the_evaluator_reads_only_the_part_of_a_large_map_its_windows_cover():
     for th in (0.0, 47.0):
         mov = p.moving_roi(th)
         assert ev.evaluate(th, ts).tolist() == [fn(p.at(a, b).ref_roi(), mov).value for a, b in ts]
+
+
+@pytest.mark.parametrize("measure", MEASURES)
+def test_loose_box_bounds_hold_where_no_roi_is_a_plain_block(measure):
+    """Boxes of translations whose ROIs are not plain blocks are bounded as boxes (cells placed where the
+    box's center reads them, the displacement measured, repeated reads weighted): never below the exact
+    values of any translation of the box, at every angle."""
+    p = _cell_centre_problem(measure)
+    k = p.window_cells
+    ev = WindowEvaluator(p)
+    bb = BoxBounds(p, ev)
+    ts = np.array([(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)])
+    exact = np.stack([ev.evaluate(float(th), ts) for th in range(360)])  # (360, T)
+    checked = 0
+    for bc, sb in odd_parts(-k, k, 3):
+        for ac, sa in odd_parts(-k, k, 3):
+            box = (ac, bc, sa, sb)
+            if (sa == 0 and sb == 0) or bb.consistent(box) or not bb.boundable(box):
+                continue
+            inside = (np.abs(ts[:, 0] - ac) <= sa) & (np.abs(ts[:, 1] - bc) <= sb)
+            ub = bb.bounds(box)
+            assert (ub >= exact[:, inside].max(axis=1)).all(), (box, measure)
+            assert np.isfinite(ub).all() and (ub < 1.0).any()
+            if measure == "ncc":  # Σx per translation, exactly
+                got = set(bb.sx_values(ac - sa, ac + sa, bc - sb, bc + sb).tolist())
+                want = {int(np.count_nonzero(p.at(int(a), int(b)).ref_roi() == OCCUPIED_S)) for a, b in ts[inside]}
+                assert got == want
+            checked += 1
+    assert checked > 0, "no loose box in the case"
+
+
+def test_loose_box_geometry_covers_every_read_of_every_translation():
+    """What the loose-box bounds rest on, per axis and translation of the box: every cell read sits within
+    the measured displacement of the reading lattice point, is read at most its weight times, and the
+    intersection's cells are read by every translation."""
+    p = _cell_centre_problem("similarity")
+    k = p.window_cells
+    ev = WindowEvaluator(p)
+    bb = BoxBounds(p, ev)
+    (cols_t, _, _, _), (rows_t, _, _, _) = ev._axes_table()
+    kk = ev.reach
+    for bc, sb in odd_parts(-k, k, 3):
+        for ac, sa in odd_parts(-k, k, 3):
+            box = (ac, bc, sa, sb)
+            if (sa == 0 and sb == 0) or bb.consistent(box):
+                continue
+            g = bb._loose(box)
+            assert g is not None
+            for (base, lo, mult, every, disp), tab, c, s in ((g["r"], rows_t, bc, sb), (g["c"], cols_t, ac, sa)):
+                for d in range(-s, s + 1):
+                    cells = tab[c + d + kk]
+                    pos = cells - base
+                    p_lat = np.arange(p.n) + bb.k + d
+                    assert (np.abs(pos - p_lat + d) <= disp).all()  # |dev + δ| ≤ the measured radius
+                    assert ((pos >= 0) & (pos < bb.big)).all()
+                    vals, counts = np.unique(cells, return_counts=True)
+                    assert (counts <= mult[vals - lo]).all()
+                    assert set(np.flatnonzero(every) + lo) <= set(vals.tolist())

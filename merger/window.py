@@ -58,8 +58,10 @@ containing c_m + R(−θ)k (unknown outside the moving ROI's square); M_θ does 
 translations [a0, a1] × [b0, b1] is *consistent* when every R_t is a plain block of the evaluator's padded
 reference whose first row and column advance by exactly one cell per cell of translation; then
 R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). A box that is not (float ties in the
-reference lattice: centers on cell borders) is cut into single translations. A single translation's box
-needs no consistency: U = I = its own ROI (whatever rows and columns of the reference it reads, as the
+reference lattice: centers on cell borders) gets the sector bounds of a *loose* box — the same argument
+with the displacement radius measured on the box's own row and column indices and repeated reads of a
+cell weighted (:meth:`merger.window_bounds.BoxBounds._loose`) — or, when its cells do not fit the big
+lattice, is cut into single translations. A single translation's box needs no consistency: U = I = its own ROI (whatever rows and columns of the reference it reads, as the
 reference reads them) and ρ = 0, so the sector bounds below are :mod:`merger.fast`'s rotation-only ones
 for that ROI; such a translation gets no box bound in stage (b) and is evaluated exactly at every angle
 its sector bound keeps.

@@ -283,3 +283,34 @@ def test_loose_box_geometry_covers_every_read_of_every_translation():
                     vals, counts = np.unique(cells, return_counts=True)
                     assert (counts <= mult[vals - lo]).all()
                     assert set(np.flatnonzero(every) + lo) <= set(vals.tolist())
+
+
+def test_loose_box_union_holds_every_occupied_read_with_its_largest_read_count():
+    """The union's weighted cells (agr̃'s bound): every reference-occupied cell any translation of the box
+    reads is there, weighted at least by the number of that translation's lattice points reading it."""
+    p = _cell_centre_problem("similarity")
+    k = p.window_cells
+    ev = WindowEvaluator(p)
+    bb = BoxBounds(p, ev)
+    (cols_t, _, _, _), (rows_t, _, _, _) = ev._axes_table()
+    kk = ev.reach
+    checked = 0
+    for bc, sb in odd_parts(-k, k, 3):
+        for ac, sa in odd_parts(-k, k, 3):
+            box = (ac, bc, sa, sb)
+            if (sa == 0 and sb == 0) or bb.consistent(box):
+                continue
+            ids, w = bb._loose_ids(bb.occ, box, False)
+            g = bb._loose(box)
+            cells_w = zip((ids // bb.big + g["r"][0]).tolist(), (ids % bb.big + g["c"][0]).tolist(), strict=True)
+            weight = dict(zip(cells_w, w.tolist(), strict=True))
+            for b in range(bc - sb, bc + sb + 1):
+                for a in range(ac - sa, ac + sa + 1):
+                    rows, cols = rows_t[b + kk], cols_t[a + kk]
+                    roi = ev._pad[np.ix_(rows, cols)]
+                    i, j = np.nonzero(roi == OCCUPIED_S)
+                    cells, reads = np.unique(np.stack([rows[i], cols[j]], axis=1), axis=0, return_counts=True)
+                    for (r, c), n_reads in zip(cells.tolist(), reads.tolist(), strict=True):
+                        assert weight.get((r, c), 0) >= n_reads, (box, (a, b), (r, c))
+                    checked += 1
+    assert checked > 0

@@ -130,7 +130,10 @@ class BoxBounds:
             return 0.0
         if self.consistent(box):
             return math.hypot(s_a, s_b)
-        return self._loose(box)["grow"]
+        loose = self._loose(box)
+        if loose is None:
+            raise ValueError(f"box {box} has no sector bound: cut it into single translations")
+        return loose["grow"]
 
     def _loose(self, box):
         """A box of translations whose ROIs are not plain blocks (centers on cell borders: a ROI reads

@@ -120,16 +120,41 @@ def _near_integer(a: np.ndarray, b: np.ndarray, eps: float):
     return rows, order[k % a.size]
 
 
+def _warp_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, u0: float, v0: float, size) -> np.ndarray:
+    """``cv2.warpAffine`` (nearest, unknown outside) of the moving states onto a target of ``size`` (w, h)
+    whose first cell looks up the continuous moving-cell coordinates (u0, v0), ``step`` moving cells per
+    target cell along the rotation ``r`` (OpenCV's pixel-centre convention: −0.5)."""
+    m = np.array([[r[0, 0] * step, r[0, 1] * step, u0 - 0.5],
+                  [r[1, 0] * step, r[1, 1] * step, v0 - 0.5]])
+    return cv2.warpAffine(np.ascontiguousarray(moving.states), m, size, flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+
+
+def _roi_axes(moving: OccupancyGrid, theta_deg: float, center_moving, n: int, resolution: float):
+    """The ROI lattice's lookups in continuous moving-cell coordinates, separable: lattice point (i, j)
+    looks up (a[j] + b[i], c[j] + d[i]) — ``(r, a, b, c, d)`` with r = R(−θ); None when the grids or the
+    coordinates are beyond what OpenCV's warp handles with the 1/512-cell margin."""
+    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
+        return None
+    r = rotation(-theta_deg)
+    k = (np.arange(n) - (n - 1) / 2.0) * resolution
+    rm = moving.resolution
+    # u_x = (c_x + r00 k_j + r01 k_i − o_x) / rm ; u_y = (c_y + r10 k_j + r11 k_i − o_y) / rm
+    a = (center_moving[0] - moving.origin[0] + r[0, 0] * k) / rm
+    b = r[0, 1] * k / rm
+    c = (center_moving[1] - moving.origin[1] + r[1, 0] * k) / rm
+    d = r[1, 1] * k / rm
+    corners = np.abs([a[0] + b[0], a[-1] + b[-1], a[0] + b[-1], a[-1] + b[0],
+                      c[0] + d[0], c[-1] + d[-1], c[0] + d[-1], c[-1] + d[0]])
+    return (r, a, b, c, d) if corners.max() < _WARP_MAX_COORD else None
+
+
 def _affine_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, a, b, c, d, size):
     """``cv2.warpAffine`` (nearest) of the moving states onto a target of ``size`` (w, h) whose cell
     (i, j) looks up the continuous moving-cell coordinates (a[j] + b[i], c[j] + d[i]) (rotation ``r``,
     ``step`` target cells per moving cell); and the cells whose lookup lies within 1/512 cell of a border,
     where OpenCV's fixed-point arithmetic could pick the neighbour: (rows, cols, u_x, u_y) in float64."""
-    m = np.array([[r[0, 0] * step, r[0, 1] * step, a[0] + b[0] - 0.5],
-                  [r[1, 0] * step, r[1, 1] * step, c[0] + d[0] - 0.5]])  # pixel-centre convention
-    out = cv2.warpAffine(np.ascontiguousarray(moving.states), m, size,
-                         flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+    out = _warp_nearest(moving, r, step, a[0] + b[0], c[0] + d[0], size)
     ix, jx = _near_integer(a, b, _WARP_EPS)
     iy, jy = _near_integer(c, d, _WARP_EPS)
     i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
@@ -246,21 +271,11 @@ def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: 
     border. A point within 1e-9 of a border in float64 is too close to call outside the reference's own
     arithmetic: then the whole ROI is computed by :func:`rotated_roi`.
     """
-    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
+    axes = _roi_axes(moving, theta_deg, center_moving, n, resolution)
+    if axes is None:
         return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-    r = rotation(-theta_deg)
-    k = (np.arange(n) - (n - 1) / 2.0) * resolution
-    rm = moving.resolution
-    # u_x = (c_x + r00 k_j + r01 k_i − o_x) / rm ; u_y = (c_y + r10 k_j + r11 k_i − o_y) / rm
-    a = (center_moving[0] - moving.origin[0] + r[0, 0] * k) / rm
-    b = r[0, 1] * k / rm
-    c = (center_moving[1] - moving.origin[1] + r[1, 0] * k) / rm
-    d = r[1, 1] * k / rm
-    corners = np.abs([a[0] + b[0], a[-1] + b[-1], a[0] + b[-1], a[-1] + b[0],
-                      c[0] + d[0], c[-1] + d[-1], c[0] + d[-1], c[-1] + d[0]])
-    if not corners.max() < _WARP_MAX_COORD:
-        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-    out, (i, j, ux, uy) = _affine_nearest(moving, r, resolution / rm, a, b, c, d, (n, n))
+    r, a, b, c, d = axes
+    out, (i, j, ux, uy) = _affine_nearest(moving, r, resolution / moving.resolution, a, b, c, d, (n, n))
     if i.size:
         if ((np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)).any():
             return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
@@ -290,27 +305,18 @@ def rotated_roi_classes(moving: OccupancyGrid, theta_deg: float, center_moving, 
     grid, unknown, as the reference), and its state lies between their smallest and largest. The
     lattice points whose rotated offset leaves the ROI square are unknown, exactly as the reference
     decides (:func:`_outside_square`)."""
-    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
-        return None
-    r = rotation(-theta_deg)
-    k = (np.arange(n) - (n - 1) / 2.0) * resolution
-    rm = moving.resolution
-    a0 = (center_moving[0] - moving.origin[0] + r[0, 0] * k[0]) / rm + r[0, 1] * k[0] / rm
-    c0 = (center_moving[1] - moving.origin[1] + r[1, 0] * k[0]) / rm + r[1, 1] * k[0] / rm
-    if not max(abs(a0), abs(c0)) + 2 * (n - 1) * resolution / rm < _WARP_MAX_COORD:
+    axes = _roi_axes(moving, theta_deg, center_moving, n, resolution)
+    if axes is None:
         return None
     outside = _outside_cached(n, resolution, theta_deg)
     if outside.size and outside[0] < 0:
         return None
-    step = resolution / rm
-    src = np.ascontiguousarray(moving.states)
+    r, a, b, c, d = axes
+    step = resolution / moving.resolution
     lo = hi = None
     for dx in (-2 * _WARP_EPS, 2 * _WARP_EPS):
         for dy in (-2 * _WARP_EPS, 2 * _WARP_EPS):
-            m = np.array([[r[0, 0] * step, r[0, 1] * step, a0 - 0.5 + dx],
-                          [r[1, 0] * step, r[1, 1] * step, c0 - 0.5 + dy]])
-            w = cv2.warpAffine(src, m, (n, n), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
+            w = _warp_nearest(moving, r, step, a[0] + b[0] + dx, c[0] + d[0] + dy, (n, n))
             if lo is None:
                 lo, hi = w, w.copy()
             else:

@@ -61,10 +61,11 @@ R_t(k) = Pad(r0 + δ_b + k_i, c0 + δ_a + k_j) with δ = t − (a0, b0). A box t
 reference lattice: centers on cell borders) gets the sector bounds of a *loose* box — the same argument
 with the displacement radius measured on the box's own row and column indices and repeated reads of a
 cell weighted (:meth:`merger.window_bounds.BoxBounds._loose`) — or, when its cells do not fit the big
-lattice, is cut into single translations. A single translation's box needs no consistency: U = I = its own ROI (whatever rows and columns of the reference it reads, as the
-reference reads them) and ρ = 0, so the sector bounds below are :mod:`merger.fast`'s rotation-only ones
-for that ROI; such a translation gets no box bound in stage (b) and is evaluated exactly at every angle
-its sector bound keeps.
+lattice, is cut into single translations. A single translation's box needs no consistency: U = I = its
+own ROI (whatever rows and columns of the reference it reads, as the reference reads them) and ρ = 0, so
+the sector bounds below are :mod:`merger.fast`'s rotation-only ones for that ROI. The translations of a
+box that is not consistent get no box bound in stage (b): they are evaluated exactly at every angle
+their sector bound keeps.
 
 * *Sector bounds* (a). Let t_c be the box's center (boxes have odd sides) and s = (s_a, s_b) its
   half-sides. Every lattice point of R_t is a point x = k + δ of the union lattice U (side n + 2s) about
@@ -314,19 +315,20 @@ class WindowEvaluator:
 
     def _occupied_cells(self):
         """Occupied cells of the padded reference that any window's ROI can hold, as flat indices in the
-        padded moving-free image's width (see :meth:`_counts`), and that image's margin."""
+        padded moving-free image's width (see :meth:`_counts`), and that image's margin; as padded
+        (rows, columns) in ``_q_rc``."""
         if self._q is None:
             n = self.n
-            (_, _, cf, _), (_, _, rf, _) = self._axes_table()
-            # every window's first padded row/column, unclipped: the windows span [r0, r1) × [c0, c1)
-            r0, r1 = int(rf.min()), int(rf.max()) + n
-            c0, c1 = int(cf.min()), int(cf.max()) + n
+            (cols_t, _, _, _), (rows_t, _, _, _) = self._axes_table()
+            # the rows and columns any window reads: [r0, r1) × [c0, c1), inside the padded part
+            r0, r1 = int(rows_t.min()), int(rows_t.max()) + 1
+            c0, c1 = int(cols_t.min()), int(cols_t.max()) + 1
             m = self._margin = max(r1 - r0, c1 - c0) - n + 2
-            hp, wp = self._pad.shape
-            sub = self._padO.reshape(self._pad.shape)[max(r0, 0):max(min(r1, hp), 0),
-                                                      max(c0, 0):max(min(c1, wp), 0)]
-            qr, qc = np.nonzero(sub)
-            self._q = (qr + max(r0, 0)) * (n + 2 * m) + (qc + max(c0, 0))
+            qr, qc = np.nonzero(self._padO.reshape(self._pad.shape)[r0:r1, c0:c1])
+            qr += r0
+            qc += c0
+            self._q_rc = (qr, qc)
+            self._q = qr * (n + 2 * m) + qc
             inside = np.zeros((n + 2 * m, n + 2 * m), bool)
             inside[m:m + n, m:m + n] = True
             self._inside = inside.reshape(-1)
@@ -498,10 +500,7 @@ class WindowEvaluator:
                             np.stack([np.searchsorted(row, r, "right") for row in idx])))
             (rf0, rl0), (cf0, cl0) = out
             self._inv = (rf0, rl0, cf0, cl0)
-            # the occupied cells any window's ROI can hold (the others are read by no lattice point)
-            r0, r1, c0, c1 = int(rows_t.min()), int(rows_t.max()) + 1, int(cols_t.min()), int(cols_t.max()) + 1
-            qr, qc = np.nonzero(self._pad[r0:r1, c0:c1] == OCCUPIED_S)
-            self._q_rc = (qr + r0, qc + c0)
+            self._occupied_cells()  # _q_rc: the occupied cells any window's ROI can hold
         return self._inv
 
     def _counts_general(self, theta: float, ia, ib, rows_sel, d_ro, ff, sx, free_agree: bool) -> None:

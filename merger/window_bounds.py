@@ -199,17 +199,25 @@ class BoxBounds:
             self._single = ((a, b), self.ev._pad[np.ix_(rows, cols)])
         return self._single[1]
 
-    def _ids(self, pts, box, inner: bool):
-        """Big-layout sector ids of the reference cells ``pts`` in the box's union of ROIs (``inner``:
-        in the intersection of its ROIs), placed about the box's center."""
+    def _box_ids(self, pts, box, inner: bool):
+        """(big-layout sector ids, weights or None for 1) of the reference cells ``pts`` in a boundable
+        box's union of ROIs (``inner``: in their intersection): :meth:`_ids` for a consistent box, the
+        lattice points of its own ROI for a single translation, :meth:`_loose_ids` for a loose box."""
         a_c, b_c, s_a, s_b = box
-        kk, n, k = self.reach, self.n, self.k
-        if s_a == 0 and s_b == 0 and not self.consistent(box):
+        if self.consistent(box):
+            return self._ids(pts, box, inner), None
+        if s_a == 0 and s_b == 0:
             # one translation whose ROI is not a plain block: its lattice points of the class of ``pts``
             # (union = intersection = the ROI), the central n × n block of the big lattice about c_ref + t
-            state = OCCUPIED_S if pts is self.occ else FREE_S
-            i, j = np.nonzero(self._single_roi(a_c, b_c) == state)
-            return (i + k) * self.big + (j + k)
+            i, j = np.nonzero(self._single_roi(a_c, b_c) == (OCCUPIED_S if pts is self.occ else FREE_S))
+            return (i + self.k) * self.big + (j + self.k), None
+        return self._loose_ids(pts, box, inner)
+
+    def _ids(self, pts, box, inner: bool):
+        """Big-layout sector ids of the reference cells ``pts`` in a consistent box's union of ROIs
+        (``inner``: in the intersection of its ROIs), placed about the box's center."""
+        a_c, b_c, s_a, s_b = box
+        kk, n, k = self.reach, self.n, self.k
         rr = pts[0] - (int(self.rf[b_c + kk]) - k)  # rows of the big lattice about c_ref + t_c
         cc = pts[1] - (int(self.cf[a_c + kk]) - k)
         if inner:
@@ -222,13 +230,12 @@ class BoxBounds:
         return _row_spectra(self.lay, np.stack([_hist(self.lay, ids) for ids in ids_list]))
 
     def sx_values(self, a0: int, a1: int, b0: int, b1: int) -> np.ndarray:
-        """The distinct values over a consistent box [a0, a1] × [b0, b1] of Σx(t), the reference-occupied
-        cells of ROI(t) (NCC), exactly (a summed-area table of the padded reference; a single translation
-        whose ROI is not a plain block: counted in it)."""
+        """The distinct values over a boundable box [a0, a1] × [b0, b1] of Σx(t), the reference-occupied
+        lattice points of ROI(t) (NCC), exactly: a summed-area table of the padded reference for a
+        consistent box; otherwise, per translation, each occupied cell times the lattice points that read
+        it (:meth:`merger.window.WindowEvaluator._inverse_axes`)."""
         kk, n = self.reach, self.n
-        if a0 == a1 and b0 == b1 and not self.consistent_rect(a0, a1, b0, b1):
-            return np.array([np.count_nonzero(self._single_roi(a0, b0) == OCCUPIED_S)])
-        if not self.consistent_rect(a0, a1, b0, b1):  # a loose box: each ROI's count, read counts included
+        if not self.consistent_rect(a0, a1, b0, b1):
             rf0, rl0, cf0, cl0 = self.ev._inverse_axes()
             qr, qc = self.ev._q_rc
             mr = rl0[np.arange(b0, b1 + 1) + kk][:, qr] - rf0[np.arange(b0, b1 + 1) + kk][:, qr]
@@ -271,9 +278,8 @@ class BoxBounds:
         nk = len(kinds)
         ids, weights = [], []
         for box in boxes:
-            loose = (box[2] or box[3]) and not self.consistent(box)
             for pts, inner in kinds:
-                i, w = self._loose_ids(pts, box, inner) if loose else (self._ids(pts, box, inner), None)
+                i, w = self._box_ids(pts, box, inner)
                 ids.append(i)
                 weights.append(np.ones(i.size) if w is None else w)
         offs = np.repeat(np.arange(nb * nk) * size, [x.size for x in ids])

@@ -227,90 +227,78 @@ def test_the_evaluator_reads_only_the_part_of_a_large_map_its_windows_cover():
         assert ev.evaluate(th, ts).tolist() == [fn(p.at(a, b).ref_roi(), mov).value for a, b in ts]
 
 
+def _loose_boxes(measure: str):
+    """The cell-centre case (:func:`_cell_centre_problem`), its evaluator and box bounds, and its 3 × 3
+    sector-stage boxes that are neither single translations nor consistent (the loose ones)."""
+    p = _cell_centre_problem(measure)
+    k = p.window_cells
+    ev = WindowEvaluator(p)
+    bb = BoxBounds(p, ev)
+    boxes = [(ac, bc, sa, sb) for bc, sb in odd_parts(-k, k, 3) for ac, sa in odd_parts(-k, k, 3)
+             if (sa or sb) and not bb.consistent((ac, bc, sa, sb))]
+    assert boxes, "no loose box in the case"
+    return p, ev, bb, boxes
+
+
 @pytest.mark.parametrize("measure", MEASURES)
 def test_loose_box_bounds_hold_where_no_roi_is_a_plain_block(measure):
     """Boxes of translations whose ROIs are not plain blocks are bounded as boxes (cells placed where the
     box's center reads them, the displacement measured, repeated reads weighted): never below the exact
     values of any translation of the box, at every angle."""
-    p = _cell_centre_problem(measure)
+    p, ev, bb, boxes = _loose_boxes(measure)
     k = p.window_cells
-    ev = WindowEvaluator(p)
-    bb = BoxBounds(p, ev)
     ts = np.array([(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)])
     exact = np.stack([ev.evaluate(float(th), ts) for th in range(360)])  # (360, T)
-    checked = 0
-    for bc, sb in odd_parts(-k, k, 3):
-        for ac, sa in odd_parts(-k, k, 3):
-            box = (ac, bc, sa, sb)
-            if (sa == 0 and sb == 0) or bb.consistent(box) or not bb.boundable(box):
-                continue
-            inside = (np.abs(ts[:, 0] - ac) <= sa) & (np.abs(ts[:, 1] - bc) <= sb)
-            ub = bb.bounds(box)
-            assert (ub >= exact[:, inside].max(axis=1)).all(), (box, measure)
-            assert np.isfinite(ub).all() and (ub < 1.0).any()
-            if measure == "ncc":  # Σx per translation, exactly
-                got = set(bb.sx_values(ac - sa, ac + sa, bc - sb, bc + sb).tolist())
-                want = {int(np.count_nonzero(p.at(int(a), int(b)).ref_roi() == OCCUPIED_S)) for a, b in ts[inside]}
-                assert got == want
-            checked += 1
-    assert checked > 0, "no loose box in the case"
+    for ac, bc, sa, sb in boxes:
+        assert bb.boundable((ac, bc, sa, sb))
+        inside = (np.abs(ts[:, 0] - ac) <= sa) & (np.abs(ts[:, 1] - bc) <= sb)
+        ub = bb.bounds((ac, bc, sa, sb))
+        assert (ub >= exact[:, inside].max(axis=1)).all(), ((ac, bc, sa, sb), measure)
+        assert np.isfinite(ub).all() and (ub < 1.0).any()
+        if measure == "ncc":  # Σx per translation, exactly
+            got = set(bb.sx_values(ac - sa, ac + sa, bc - sb, bc + sb).tolist())
+            want = {int(np.count_nonzero(p.at(int(a), int(b)).ref_roi() == OCCUPIED_S)) for a, b in ts[inside]}
+            assert got == want
 
 
 def test_loose_box_geometry_covers_every_read_of_every_translation():
     """What the loose-box bounds rest on, per axis and translation of the box: every cell read sits within
     the measured displacement of the reading lattice point, is read at most its weight times, and the
     intersection's cells are read by every translation."""
-    p = _cell_centre_problem("similarity")
-    k = p.window_cells
-    ev = WindowEvaluator(p)
-    bb = BoxBounds(p, ev)
+    p, ev, bb, boxes = _loose_boxes("similarity")
     (cols_t, _, _, _), (rows_t, _, _, _) = ev._axes_table()
     kk = ev.reach
-    for bc, sb in odd_parts(-k, k, 3):
-        for ac, sa in odd_parts(-k, k, 3):
-            box = (ac, bc, sa, sb)
-            if (sa == 0 and sb == 0) or bb.consistent(box):
-                continue
-            g = bb._loose(box)
-            assert g is not None
-            for (base, lo, mult, every, disp), tab, c, s in ((g["r"], rows_t, bc, sb), (g["c"], cols_t, ac, sa)):
-                for d in range(-s, s + 1):
-                    cells = tab[c + d + kk]
-                    pos = cells - base
-                    p_lat = np.arange(p.n) + bb.k + d
-                    assert (np.abs(pos - p_lat + d) <= disp).all()  # |dev + δ| ≤ the measured radius
-                    assert ((pos >= 0) & (pos < bb.big)).all()
-                    vals, counts = np.unique(cells, return_counts=True)
-                    assert (counts <= mult[vals - lo]).all()
-                    assert set(np.flatnonzero(every) + lo) <= set(vals.tolist())
+    for ac, bc, sa, sb in boxes:
+        g = bb._loose((ac, bc, sa, sb))
+        assert g is not None
+        for (base, lo, mult, every, disp), tab, c, s in ((g["r"], rows_t, bc, sb), (g["c"], cols_t, ac, sa)):
+            for d in range(-s, s + 1):
+                cells = tab[c + d + kk]
+                pos = cells - base
+                p_lat = np.arange(p.n) + bb.k + d
+                assert (np.abs(pos - p_lat + d) <= disp).all()  # |dev + δ| ≤ the measured radius
+                assert ((pos >= 0) & (pos < bb.big)).all()
+                vals, counts = np.unique(cells, return_counts=True)
+                assert (counts <= mult[vals - lo]).all()
+                assert set(np.flatnonzero(every) + lo) <= set(vals.tolist())
 
 
 def test_loose_box_union_holds_every_occupied_read_with_its_largest_read_count():
     """The union's weighted cells (agr̃'s bound): every reference-occupied cell any translation of the box
     reads is there, weighted at least by the number of that translation's lattice points reading it."""
-    p = _cell_centre_problem("similarity")
-    k = p.window_cells
-    ev = WindowEvaluator(p)
-    bb = BoxBounds(p, ev)
+    _, ev, bb, boxes = _loose_boxes("similarity")
     (cols_t, _, _, _), (rows_t, _, _, _) = ev._axes_table()
     kk = ev.reach
-    checked = 0
-    for bc, sb in odd_parts(-k, k, 3):
-        for ac, sa in odd_parts(-k, k, 3):
-            box = (ac, bc, sa, sb)
-            if (sa == 0 and sb == 0) or bb.consistent(box):
-                continue
-            ids, w = bb._loose_ids(bb.occ, box, False)
-            g = bb._loose(box)
-            cells_w = zip((ids // bb.big + g["r"][0]).tolist(), (ids % bb.big + g["c"][0]).tolist(), strict=True)
-            weight = dict(zip(cells_w, w.tolist(), strict=True))
-            for b in range(bc - sb, bc + sb + 1):
-                for a in range(ac - sa, ac + sa + 1):
-                    rows, cols = rows_t[b + kk], cols_t[a + kk]
-                    roi = ev._pad[np.ix_(rows, cols)]
-                    i, j = np.nonzero(roi == OCCUPIED_S)
-                    cells, reads = np.unique(np.stack([rows[i], cols[j]], axis=1), axis=0, return_counts=True)
-                    for (r, c), n_reads in zip(cells.tolist(), reads.tolist(), strict=True):
-                        assert weight.get((r, c), 0) >= n_reads, (box, (a, b), (r, c))
-                    checked += 1
-    assert checked > 0
+    for box in boxes:
+        ac, bc, sa, sb = box
+        ids, w = bb._loose_ids(bb.occ, box, False)
+        g = bb._loose(box)
+        cells_w = zip((ids // bb.big + g["r"][0]).tolist(), (ids % bb.big + g["c"][0]).tolist(), strict=True)
+        weight = dict(zip(cells_w, w.tolist(), strict=True))
+        for b in range(bc - sb, bc + sb + 1):
+            for a in range(ac - sa, ac + sa + 1):
+                rows, cols = rows_t[b + kk], cols_t[a + kk]
+                i, j = np.nonzero(ev._pad[np.ix_(rows, cols)] == OCCUPIED_S)
+                cells, reads = np.unique(np.stack([rows[i], cols[j]], axis=1), axis=0, return_counts=True)
+                for (r, c), n_reads in zip(cells.tolist(), reads.tolist(), strict=True):
+                    assert weight.get((r, c), 0) >= n_reads, (box, (a, b), (r, c))

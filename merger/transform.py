@@ -9,12 +9,10 @@ resampling on cell centres, so no state is ever invented; points outside map j a
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import cv2
 import numpy as np
 
-from .cache import BoundedCache
 from .grid import UNKNOWN_S, OccupancyGrid
 
 
@@ -63,14 +61,12 @@ def rotated_roi(moving: OccupancyGrid, theta_deg: float, center_moving, center_r
 
     The moving ROI is the square of side ``n * resolution`` centred on ``center_moving`` in the moving
     map's own frame (the thesis's roi_2); after rotation its corners leave the reference square and
-    the reference square's corners are unknown (outside the rotated roi_2).
+    the reference square's corners are unknown. Defined in :mod:`merger.search.lattice` (the one place
+    that computes a lattice point's lookup); ``center_ref`` does not enter (the lattice is relative).
     """
-    d = roi_offsets(n, resolution) @ rotation(-theta_deg).T  # offsets in the moving frame
-    half = n * resolution / 2.0
-    pts = np.asarray(center_moving, np.float64) + d
-    out = sample_nearest(moving, pts)
-    out[(np.abs(d[..., 0]) >= half) | (np.abs(d[..., 1]) >= half)] = UNKNOWN_S
-    return out
+    from .search.lattice import moving_states_numpy
+
+    return moving_states_numpy(moving, theta_deg, center_moving, n, resolution)
 
 
 def warp_grid(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
@@ -128,25 +124,6 @@ def _warp_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, u0: float, 
                   [r[1, 0] * step, r[1, 1] * step, v0 - 0.5]])
     return cv2.warpAffine(np.ascontiguousarray(moving.states), m, size, flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
-
-
-def _roi_axes(moving: OccupancyGrid, theta_deg: float, center_moving, n: int, resolution: float):
-    """The ROI lattice's lookups in continuous moving-cell coordinates, separable: lattice point (i, j)
-    looks up (a[j] + b[i], c[j] + d[i]) — ``(r, a, b, c, d)`` with r = R(−θ); None when the grids or the
-    coordinates are beyond what OpenCV's warp handles with the 1/512-cell margin."""
-    if not (0 < moving.height < 32767 and 0 < moving.width < 32767):
-        return None
-    r = rotation(-theta_deg)
-    k = (np.arange(n) - (n - 1) / 2.0) * resolution
-    rm = moving.resolution
-    # u_x = (c_x + r00 k_j + r01 k_i − o_x) / rm ; u_y = (c_y + r10 k_j + r11 k_i − o_y) / rm
-    a = (center_moving[0] - moving.origin[0] + r[0, 0] * k) / rm
-    b = r[0, 1] * k / rm
-    c = (center_moving[1] - moving.origin[1] + r[1, 0] * k) / rm
-    d = r[1, 1] * k / rm
-    corners = np.abs([a[0] + b[0], a[-1] + b[-1], a[0] + b[-1], a[-1] + b[0],
-                      c[0] + d[0], c[-1] + d[-1], c[0] + d[-1], c[-1] + d[0]])
-    return (r, a, b, c, d) if corners.max() < _WARP_MAX_COORD else None
 
 
 def _affine_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, a, b, c, d, size):
@@ -258,114 +235,3 @@ def paste(ref: OccupancyGrid, target: OccupancyGrid) -> OccupancyGrid:
     out = np.zeros(target.shape, np.uint8)
     out[dr:dr + ref.height, dc:dc + ref.width] = ref.states
     return OccupancyGrid(out, target.resolution, target.origin)
-
-
-def rotated_roi_fast(moving: OccupancyGrid, theta_deg: float, center_moving, n: int,
-                     resolution: float) -> np.ndarray:
-    """:func:`rotated_roi` computed with OpenCV's nearest-neighbour affine warp; the same states.
-
-    The lookup point of lattice point (i, j) in continuous moving-cell coordinates is separable,
-    u = A[j] + B[i] (x and y alike), so the points OpenCV could round to the neighbour cell (within
-    1/512 cell of a border: its fixed-point arithmetic is good to ~1/1024) are found analytically
-    (:func:`_near_integer`) and recomputed in float64; so are the points near the rotated square's
-    border. A point within 1e-9 of a border in float64 is too close to call outside the reference's own
-    arithmetic: then the whole ROI is computed by :func:`rotated_roi`.
-    """
-    axes = _roi_axes(moving, theta_deg, center_moving, n, resolution)
-    if axes is None:
-        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-    r, a, b, c, d = axes
-    out, (i, j, ux, uy) = _affine_nearest(moving, r, resolution / moving.resolution, a, b, c, d, (n, n))
-    if i.size:
-        if ((np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)).any():
-            return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-        col, row = np.floor(ux), np.floor(uy)
-        inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
-        cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
-        out[i, j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
-    outside = _outside_cached(n, resolution, theta_deg)
-    if outside.size and outside[0] < 0:
-        return rotated_roi(moving, theta_deg, center_moving, None, n, resolution)
-    out.reshape(-1)[outside] = UNKNOWN_S
-    return out
-
-
-def rotated_roi_classes(moving: OccupancyGrid, theta_deg: float, center_moving, n: int, resolution: float):
-    """Bounds of :func:`rotated_roi`'s states without its certification (the exact lookups near cell
-    borders): flat arrays ``(lo, hi)`` over the (n, n) lattice with lo ≤ the reference's state ≤ hi
-    (state codes unknown < free < occupied); so ``hi == occupied`` where the state *may* be occupied,
-    ``lo == occupied`` where it surely is, ``lo == hi == free`` where it is surely free. None where
-    :func:`rotated_roi_fast` would not use OpenCV's warp (the caller then computes the exact ROI).
-
-    Why they hold: OpenCV's nearest warp computes a lookup's continuous moving-cell coordinate to within
-    1/512 cell of the reference's u (its fixed point is good to ~1/1024: the margin
-    :func:`rotated_roi_fast` relies on). Four warps whose source points are moved by ±1/256 cell in x and
-    in y give, per axis, u'₋ < u < u'₊ with u'₊ − u'₋ ≤ 1/128 + 1/256 < 1, so floor(u) is floor(u'₋)
-    or floor(u'₊): the reference's cell is one of the four cells the shifted warps look up (outside the
-    grid, unknown, as the reference), and its state lies between their smallest and largest. The
-    lattice points whose rotated offset leaves the ROI square are unknown, exactly as the reference
-    decides (:func:`_outside_square`)."""
-    axes = _roi_axes(moving, theta_deg, center_moving, n, resolution)
-    if axes is None:
-        return None
-    outside = _outside_cached(n, resolution, theta_deg)
-    if outside.size and outside[0] < 0:
-        return None
-    r, a, b, c, d = axes
-    step = resolution / moving.resolution
-    lo = hi = None
-    for dx in (-2 * _WARP_EPS, 2 * _WARP_EPS):
-        for dy in (-2 * _WARP_EPS, 2 * _WARP_EPS):
-            w = _warp_nearest(moving, r, step, a[0] + b[0] + dx, c[0] + d[0] + dy, (n, n))
-            if lo is None:
-                lo, hi = w, w.copy()
-            else:
-                np.minimum(lo, w, out=lo)
-                np.maximum(hi, w, out=hi)
-    lo, hi = lo.reshape(-1), hi.reshape(-1)
-    lo[outside] = UNKNOWN_S
-    hi[outside] = UNKNOWN_S
-    return lo, hi
-
-
-_OUTSIDE = BoundedCache(max_entries=720, max_bytes=16 * 2**20)
-
-
-def _outside_cached(n: int, resolution: float, theta_deg: float) -> np.ndarray:
-    """:func:`_outside_square` from the bounded cache :data:`_OUTSIDE` (shared by every map's searches)."""
-    key = (n, float(resolution), float(theta_deg))
-    outside = _OUTSIDE.get(key)
-    if outside is None:
-        outside = _outside_square(n, resolution, float(theta_deg))
-        _OUTSIDE.put(key, outside)
-    return outside
-
-
-def _outside_square(n: int, resolution: float, theta_deg: float) -> np.ndarray:
-    """The lattice points (flat indices) whose offset rotated by −θ leaves the ROI square, or [−1] when one
-    lies within 1e-9 of its border (then the reference's own arithmetic decides). It depends on the
-    lattice and θ only, so the searches of every map share it (kept in a bounded cache)."""
-    r = rotation(-theta_deg)
-    half = n * resolution / 2.0
-    # d = R(−θ)(k_j, k_i) is outside when |d_x| or |d_y| ≥ half; |d| = |k|, so only the lattice points at
-    # least (nearly) half away from the center can be outside
-    ci, cj, kx, ky = _far_points(n, resolution)
-    adx = np.abs(r[0, 0] * kx + r[0, 1] * ky)
-    ady = np.abs(r[1, 0] * kx + r[1, 1] * ky)
-    if (np.abs(adx - half) < _EXACT_EPS).any() or (np.abs(ady - half) < _EXACT_EPS).any():
-        return np.array([-1], np.int64)
-    outside = (adx >= half) | (ady >= half)
-    idx = ci[outside] * n + cj[outside]
-    idx = idx.astype(np.int32 if n * n < 2**31 else np.int64)
-    idx.setflags(write=False)
-    return idx
-
-
-@lru_cache(maxsize=8)
-def _far_points(n: int, resolution: float):
-    """Lattice points (rows, cols, k_x, k_y) of an (n, n) ROI at least half its side (less a margin)
-    from its center: the only ones a rotation can take out of the square."""
-    k = (np.arange(n) - (n - 1) / 2.0) * resolution
-    half = n * resolution / 2.0
-    i, j = np.nonzero(k[:, None] ** 2 + k[None, :] ** 2 >= (half * (1 - 1e-6)) ** 2)
-    return i, j, k[j], k[i]

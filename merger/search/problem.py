@@ -1,10 +1,9 @@
-"""Rotation search about a shared center: find θ maximizing a similarity on the region of interest.
+"""What a search is asked and what it answers: :class:`RotationProblem` and :class:`Alignment`.
 
 The thesis (3.3.1) searches exhaustively: 1° steps over [0°, 360°), then 0.1° steps over ±1° around
-the best coarse angle (360 + 20 = 380 rotations). :func:`reference_search` does exactly that and is
-the yardstick for faster methods. Methods are pluggable: a method is a callable
-``(problem: RotationProblem) -> Alignment`` registered in :data:`SEARCH_METHODS` with
-:func:`register_method`.
+the best coarse angle (360 + 20 = 380 rotations); with a translation window of ±K cells, every one-cell
+translation of it too. The grid conventions (angles in [0, 360), the runner-up, the fine angles) live
+here; the searches in :mod:`merger.search.engine`.
 """
 
 from __future__ import annotations
@@ -16,10 +15,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .grid import OccupancyGrid
-from .similarity import MEASURES, Counts, measure_fn
-from .transform import extract_roi, roi_cells, rotated_roi
-from .window import window_cells
+from ..grid import OccupancyGrid
+from ..similarity import MEASURES, Counts, measure_fn
+from ..transform import extract_roi, roi_cells, rotated_roi
+
+
+def window_cells(window_m: float, resolution: float) -> int:
+    """K: translations of at most K cells each way fit in ±window_m."""
+    return int(math.floor(window_m / resolution + 1e-9)) if window_m > 0 else 0
+
 
 MAX_WINDOW_FRACTION = 0.25  # the translation window may cover at most a quarter of the ROI side
 
@@ -246,43 +250,6 @@ def fine_angles(coarse_deg: float) -> np.ndarray:
     return coarse_deg + np.arange(-k, k + 1) * FINE_STEP_DEG
 
 
-def reference_search(problem: RotationProblem) -> Alignment:
-    """Exhaustive search exactly as the thesis: 360 coarse 1° rotations, then 0.1° over ±1°.
-
-    Every angle rotates the moving ROI with :func:`merger.transform.rotated_roi` and evaluates the
-    measure on the whole ROI. Ties go to the smallest angle (first maximum).
-    """
-    ref_roi = problem.ref_roi()
-    fn = measure_fn(problem.measure)
-    coarse = np.array([fn(ref_roi, problem.moving_roi(float(a))).value for a in range(360)])
-    best_coarse = float(np.argmax(coarse))
-    best = None
-    fine_vals = []
-    for a in fine_angles(best_coarse):
-        s = fn(ref_roi, problem.moving_roi(float(a)))
-        fine_vals.append(s.value)
-        if best is None or s.value > best[1].value:
-            best = (float(a), s)
-    theta = wrap_deg(best[0])
-    ru_deg, ru_score = runner_up(coarse, theta)
-    return Alignment(theta, best[1].value, best[1].counts, problem.measure, "reference",
-                     problem.roi_m, coarse, (ru_deg, ru_score),
-                     fine=(fine_angles(best_coarse), np.array(fine_vals, np.float64)))
-
-
-SearchMethod = Callable[[RotationProblem], Alignment]
-SEARCH_METHODS: dict[str, SearchMethod] = {"reference": reference_search}
-WINDOW_METHODS: dict[str, SearchMethod] = {}
-
-
-def register_method(name: str, fn: SearchMethod, window_fn: SearchMethod | None = None) -> None:
-    """Register a search method under ``name`` (used by ``align(..., method=name)``); ``window_fn``
-    searches problems with a translation window (without it, ``name`` is rotation-only)."""
-    SEARCH_METHODS[name] = fn
-    if window_fn is not None:
-        WINDOW_METHODS[name] = window_fn
-
-
 def check_window(window_m: float, roi_m: float) -> None:
     """A window must be a finite number in [0, roi_m / 4] (ValueError naming what was expected)."""
     try:
@@ -294,36 +261,3 @@ def check_window(window_m: float, roi_m: float) -> None:
     if w > MAX_WINDOW_FRACTION * roi_m + 1e-12:
         raise ValueError(f"window_m = {w:g} m is more than a quarter of the ROI side ({roi_m:g} m): "
                          f"expected at most {MAX_WINDOW_FRACTION * roi_m:g} m (or a larger ROI)")
-
-
-def search(problem: RotationProblem, method: str = "reference") -> Alignment:
-    """Run a registered search method on ``problem``.
-
-    A problem with a translation window (``window_m`` of at least one cell) is searched by the method's
-    windowed variant (:data:`WINDOW_METHODS`, see :mod:`merger.window`); a problem with ``refine`` gets
-    the sub-cell refinement (:func:`merger.window.refine_alignment`) of the method's grid answer."""
-    table = WINDOW_METHODS if problem.window_cells > 0 else SEARCH_METHODS
-    try:
-        fn = table[method]
-    except KeyError:
-        kind = "windowed search method" if table is WINDOW_METHODS else "search method"
-        raise ValueError(f"unknown {kind} {method!r}; expected one of "
-                         f"{', '.join(sorted(table))}") from None
-    al = fn(problem)
-    if problem.refine and not al.refined:
-        from .window import refine_alignment
-
-        al = refine_alignment(problem, al)
-    return al
-
-
-# The fast method (merger/fast.py) builds on this module and registers itself in SEARCH_METHODS.
-from . import fast as _fast  # noqa: E402,F401  (imported last: it imports the names above)
-from .window import climb_window_search, fast_window_search, reference_window_search  # noqa: E402
-
-WINDOW_METHODS["reference"] = reference_window_search
-WINDOW_METHODS["fast"] = fast_window_search
-# "climb": the fast search's windowed incumbent without its certificate (approximate, ~2.4x cheaper);
-# rotation-only problems get the (exact) fast search
-SEARCH_METHODS["climb"] = SEARCH_METHODS["fast"]
-WINDOW_METHODS["climb"] = climb_window_search

@@ -1,0 +1,82 @@
+"""Rotation (and translation) search about a shared center — the thesis's section 3.3.1, exact and fast.
+
+Layout (an acyclic core; proofs in docs/design/search.md, cited as Lemma N):
+
+* :mod:`.lattice` — which cell each ROI lattice point reads (the one place; numpy spec + kernel);
+* :mod:`.measures` — one :class:`~.measures.Measure` per similarity measure: value and upper bound;
+* :mod:`.prepared` — a problem's lattice tables and bound tables;
+* :mod:`.kernels` — compiled exact counts, region bounds and the branch and bound;
+* :mod:`.problem` — :class:`RotationProblem` and :class:`Alignment`;
+* :mod:`.engine` — the searches: ``spec`` (numpy definition), ``reference`` (compiled exhaustive),
+  ``fast`` (branch and bound, the same answer), the exact runner-up and the guard beyond the window;
+* :mod:`.refine` — sub-cell refinement; :mod:`.caches` — the searcher cache and ``clear_all()``.
+
+A method is a callable ``(problem) -> Alignment`` registered in :data:`SEARCH_METHODS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from .caches import clear_all
+from .engine import (
+    beyond_window,
+    exact_runner_up,
+    fast_search,
+    reference_beyond,
+    reference_search,
+    searcher_for,
+    spec_search,
+)
+from .prepared import translation_offsets
+from .problem import (
+    COARSE_STEP_DEG,
+    FINE_HALF_WIDTH_DEG,
+    FINE_STEP_DEG,
+    MAX_WINDOW_FRACTION,
+    RUNNER_UP_MIN_SEPARATION_DEG,
+    Alignment,
+    RotationProblem,
+    angle_diff_deg,
+    check_window,
+    fine_angles,
+    runner_up,
+    window_cells,
+    wrap_deg,
+)
+from .refine import refine_alignment
+
+SearchMethod = Callable[[RotationProblem], Alignment]
+SEARCH_METHODS: dict[str, SearchMethod] = {
+    "reference": reference_search,  # exhaustive, compiled
+    "fast": fast_search,  # branch and bound: the reference's answer
+    "spec": spec_search,  # the numpy definition (small problems)
+}
+
+
+def register_method(name: str, fn: SearchMethod) -> None:
+    """Register a search method under ``name`` (used by ``search(problem, name)``)."""
+    SEARCH_METHODS[name] = fn
+
+
+def search(problem: RotationProblem, method: str = "reference") -> Alignment:
+    """Run a registered search method on ``problem`` (with or without a translation window); a problem
+    with ``refine`` gets the sub-cell refinement of the method's grid answer."""
+    try:
+        fn = SEARCH_METHODS[method]
+    except KeyError:
+        raise ValueError(f"unknown search method {method!r}; expected one of "
+                         f"{', '.join(sorted(SEARCH_METHODS))}") from None
+    al = fn(problem)
+    if problem.refine and not al.refined:
+        al = refine_alignment(problem, al)
+    return al
+
+
+__all__ = [
+    "COARSE_STEP_DEG", "FINE_HALF_WIDTH_DEG", "FINE_STEP_DEG", "MAX_WINDOW_FRACTION",
+    "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "RotationProblem", "angle_diff_deg",
+    "beyond_window", "check_window", "clear_all", "exact_runner_up", "fast_search", "fine_angles",
+    "reference_beyond", "reference_search", "refine_alignment", "register_method", "runner_up", "search",
+    "searcher_for", "spec_search", "translation_offsets", "window_cells", "wrap_deg",
+]

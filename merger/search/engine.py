@@ -1,0 +1,304 @@
+"""The searches: the exhaustive reference (compiled, and its numpy specification) and the fast one.
+
+Both answer the thesis's grid answer (docs/design/search.md §2): over every translation (a, b) of the
+window (|a|, |b| ≤ K cells) and every coarse angle 0°, 1°, …, 359° the best value, ties to the
+translation first in :func:`merger.search.prepared.translation_offsets` order, then the smallest
+angle; then 0.1° over θc ± 1° at that translation, the first maximum. K = 0 is the thesis's search.
+
+* :func:`spec_search` — the definition in numpy (every angle and translation evaluated on whole ROIs
+  with :mod:`merger.similarity`); slow, for small problems in tests.
+* :func:`reference_search` — the same exhaustive loop on the compiled exact counts
+  (:func:`merger.search.kernels.exact_counts`): the same floats, at full size.
+* :func:`fast_search` — :func:`merger.search.kernels.branch_and_bound` over (sector, box) regions with
+  the reference's order as the key (Lemma 5): exactly the reference's answer. Its profile is an upper
+  envelope of the reference's (exact where evaluated, never above the best coarse value); its runner-up
+  and the guard beyond the window are computed exactly, on first access, by the same branch and bound.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import replace
+
+import numpy as np
+
+from ..similarity import Counts, measure_fn
+from . import caches
+from .kernels import branch_and_bound, exact_counts, fill_moving
+from .lattice import rotation_entries
+from .measures import NCC
+from .prepared import Prepared, translation_offsets
+from .problem import (
+    MAX_WINDOW_FRACTION,
+    RUNNER_UP_MIN_SEPARATION_DEG,
+    Alignment,
+    angle_diff_deg,
+    fine_angles,
+    runner_up,
+    wrap_deg,
+)
+
+COARSE = np.arange(360.0)
+SLOT_BYTES = 32 * 2**20  # the moving ROIs kept per search (dense states and occupied points)
+SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
+BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
+BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
+
+
+def _rot(angles: np.ndarray) -> np.ndarray:
+    return np.array([rotation_entries(float(a)) for a in angles], np.float64).reshape(-1, 4)
+
+
+class Searcher:
+    """One problem's prepared arrays and the moving ROIs computed so far (per angle array)."""
+
+    def __init__(self, problem, k: int | None = None) -> None:
+        self.p = Prepared(problem, k)
+        n = self.p.n
+        self._angles: np.ndarray | None = None
+        n_slots = int(min(360, max(2, SLOT_BYTES // (5 * n * n))))
+        self.slots_dense = np.zeros((n_slots, n * n), np.uint8)
+        self.slots_pocc = np.zeros((n_slots, n * n), np.int32)
+        self.slot_counts = np.zeros((n_slots, 2), np.int64)
+        self.slot_angle = np.full(n_slots, -1, np.int64)
+        self.stats = {"bounds": 0, "exact": 0}
+        self.lock = threading.RLock()  # one search at a time per searcher (its ROI slots are shared)
+
+    def _use(self, angles: np.ndarray):
+        if self._angles is None or self._angles.shape != angles.shape or not np.array_equal(self._angles, angles):
+            self._angles = angles.copy()
+            self._rot = _rot(angles)
+            self.slot_angle[:] = -1
+            self._asum = None
+        return self._rot
+
+    def angle_sums(self) -> np.ndarray:
+        """Per angle of the current array: the moving ROI's occupied (NCC) or free (Birk–Carpin) points."""
+        if self._asum is None:
+            p = self.p
+            out = np.zeros(self._angles.size, np.int64)
+            if p.measure.sums:
+                dense = np.empty(p.n * p.n, np.uint8)
+                pocc = np.empty(p.n * p.n, np.int32)
+                for x in range(self._angles.size):
+                    no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *self._rot[x], dense, pocc)
+                    out[x] = no if p.measure.code == NCC else nf
+            self._asum = out
+        return self._asum
+
+    def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
+            sector0: int = SECTOR0):
+        """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope)."""
+        with self.lock:
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0)
+
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0):
+        p = self.p
+        angles = np.asarray(angles, np.float64)
+        rot = self._use(angles)
+        side = p.side
+        amask = np.ones(angles.size, np.bool_) if amask is None else np.asarray(amask, np.bool_)
+        tmask = np.ones(side * side, np.bool_) if tmask is None else np.asarray(tmask, np.bool_)
+        excl_a, excl_t = (np.zeros(angles.size, np.bool_), np.zeros(side * side, np.bool_)) if excl is None else excl
+        inc = np.array([-np.inf, 0, 0, -1, 0, 0, 0, 0, 0], np.float64) if inc is None else inc
+        env = np.full(angles.size, -np.inf)
+        ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0], np.int64)
+        nb, ne = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
+                                  p.axes_r, p.axes_c, p.p1r, p.p1c, p.blk, p.lvl_start, p.mstates, p.occ_sat,
+                                  p.free_sat, angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
+                                  excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
+                                  self.slot_counts, inc, env)
+        self.stats["bounds"] += int(nb)
+        self.stats["exact"] += int(ne)
+        return inc, env
+
+    def exact(self, theta_deg: float, a: int, b: int) -> tuple[float, Counts]:
+        """The exact value and counts (free/free included) at one (θ, t) in cells."""
+        p = self.p
+        rot = rotation_entries(theta_deg)
+        dense = np.empty(p.n * p.n, np.uint8)
+        pocc = np.empty(p.n * p.n, np.int32)
+        no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *rot, dense, pocc)
+        ai, bi = a + p.k, b + p.k
+        agr, dis, ff = exact_counts(dense, pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc, p.axes_r[3],
+                                    p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, True)
+        sx = p.tsum[bi * p.side + ai] if p.measure.code != NCC else _ncc_sx(p, ai, bi)
+        sy = no if p.measure.code == NCC else nf
+        return p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n), Counts(int(agr), int(dis), int(ff))
+
+    def values(self, theta_deg: float, ts) -> np.ndarray:
+        """Exact values at one angle for translations ``ts`` ((a, b) cells, within the window)."""
+        p = self.p
+        rot = rotation_entries(theta_deg)
+        dense = np.empty(p.n * p.n, np.uint8)
+        pocc = np.empty(p.n * p.n, np.int32)
+        no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *rot, dense, pocc)
+        out = np.empty(len(ts))
+        need_ff = p.measure.needs_free_agree
+        for x, (a, b) in enumerate(ts):
+            ai, bi = a + p.k, b + p.k
+            agr, dis, ff = exact_counts(dense, pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc, p.axes_r[3],
+                                        p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, need_ff)
+            sx = p.tsum[bi * p.side + ai]
+            sy = no if p.measure.code == NCC else nf
+            out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n)
+        return out
+
+    def values_at_angles(self, angles, t) -> np.ndarray:
+        """Exact values at one translation ``t`` (cells) for each of ``angles``."""
+        return np.array([self.values(float(a), [t])[0] for a in angles], np.float64)
+
+    def translation_mask(self, ts) -> np.ndarray:
+        m = np.zeros(self.p.side * self.p.side, np.bool_)
+        for a, b in ts:
+            m[(b + self.p.k) * self.p.side + (a + self.p.k)] = True
+        return m
+
+
+def _ncc_sx(p: Prepared, ai: int, bi: int) -> int:
+    return int(p.tsum[bi * p.side + ai])
+
+
+def searcher_for(problem, k: int | None = None) -> Searcher:
+    """The searcher of ``problem`` (kept per problem object, see :mod:`merger.search.caches`)."""
+    return caches.searcher(problem, k, Searcher)
+
+
+# --- answers -------------------------------------------------------------------------------------------
+def _fine(s: Searcher, th_c: float, tc) -> tuple[np.ndarray, np.ndarray, int]:
+    """The thesis's refinement at translation ``tc``: the first maximum of 0.1° over θc ± 1°."""
+    angles = fine_angles(th_c)
+    inc, env = s.run(angles, tmask=s.translation_mask([tc]), sector0=angles.size)
+    return angles, env, int(inc[3])
+
+
+def fast_search(problem) -> Alignment:
+    """The thesis's grid answer by branch and bound (see the module documentation); exact."""
+    s = searcher_for(problem)
+    inc, env = s.run(COARSE)
+    th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
+    angles, fine_env, kf = _fine(s, th_c, tc)
+    value, counts = s.exact(float(angles[kf]), *tc)
+    theta = wrap_deg(float(angles[kf]))
+    profile = np.minimum(env, max(float(inc[0]), 0.0)) if problem.measure == "ncc" else env
+    best_value = float(inc[0])
+    return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, profile,
+                     lambda: exact_runner_up(problem, theta), window_m=problem.window_m,
+                     translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_env),
+                     _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)),
+                     evidence={"profile": "upper_envelope", "runner_up": "exact"})
+
+
+def exact_runner_up(problem, theta_deg: float) -> tuple[float, float]:
+    """The reference's runner-up exactly: over the coarse angles at least 10° from ``theta_deg``, the
+    first maximum (smallest angle) of the best value over the window (NaNs when no angle is that far)."""
+    far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
+    if not far.any():
+        return float("nan"), float("nan")
+    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far)
+    return float(inc[3]), float(inc[0])
+
+
+def _wide(problem):
+    wide = min(BEYOND_FACTOR * problem.window_m, MAX_WINDOW_FRACTION * problem.roi_m)
+    return replace(problem, window_m=wide, refine=False)
+
+
+def _apart(a, b) -> bool:
+    """Whether two grid alignments (θ°, (a, b) cells) are more than one grid step apart. A better
+    alignment one step beyond the window's edge is the answer's own peak, cut by the edge."""
+    if abs(angle_diff_deg(float(a[0]), float(b[0]))) > BEYOND_APART_STEPS:
+        return True
+    return math.dist(a[1], b[1]) > BEYOND_APART_STEPS
+
+
+def beyond_window(problem, best_value: float, answer):
+    """The best coarse alignment outside the window and within ``BEYOND_FACTOR`` × it (at most a quarter
+    of the ROI side) that scores above ``best_value`` and is apart from the grid answer ``answer`` =
+    (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None — exactly (the first in the order θ, then
+    the translation order), by the branch and bound over that ring."""
+    k = problem.window_cells
+    big = _wide(problem)
+    kb = big.window_cells
+    if k == 0 or kb <= k:
+        return None
+    s = searcher_for(big)
+    side = 2 * kb + 1
+    ring = [(a, b) for (a, b) in translation_offsets(kb) if max(abs(a), abs(b)) > k]
+    th_ans, (a_ans, b_ans) = answer
+    excl_a = np.array([not _apart((float(t), (0, 0)), (th_ans, (0, 0))) for t in COARSE], np.bool_)
+    excl_t = np.zeros(side * side, np.bool_)
+    for a, b in ring:
+        if not _apart((th_ans, (a, b)), (th_ans, (a_ans, b_ans))):
+            excl_t[(b + kb) * side + (a + kb)] = True
+    inc = np.array([best_value, -1, -1, -1, 0, 0, 0, 0, 0], np.float64)  # strictly above best_value
+    inc, _ = s.run(COARSE, mode=1, tmask=s.translation_mask(ring), inc=inc, excl=(excl_a, excl_t))
+    if inc[3] < 0:
+        return None
+    return float(inc[3]), big.offset_m(int(inc[4]), int(inc[5])), float(inc[0])
+
+
+def reference_search(problem) -> Alignment:
+    """The exhaustive search on compiled exact counts: every coarse angle × every translation."""
+    s = searcher_for(problem)
+    p = s.p
+    ts = translation_offsets(p.k)
+    table = np.empty((len(ts), 360))
+    for th in range(360):
+        table[:, th] = s.values(float(th), ts)
+    i_best, th_best = np.unravel_index(int(np.argmax(table)), table.shape)  # first max: t order, then θ
+    tc = ts[int(i_best)]
+    angles = fine_angles(float(th_best))
+    fine_vals = np.array([s.values(float(a), [tc])[0] for a in angles])
+    kf = int(np.argmax(fine_vals))
+    theta = wrap_deg(float(angles[kf]))
+    value, counts = s.exact(float(angles[kf]), *tc)
+    profile = table.max(axis=0)
+    best_value = float(table[int(i_best), int(th_best)])
+    return Alignment(theta, value, counts, problem.measure, "reference", problem.roi_m, profile,
+                     runner_up(profile, theta), window_m=problem.window_m, translation_m=problem.offset_m(*tc),
+                     cells=tc, fine=(angles, fine_vals),
+                     _beyond=lambda: reference_beyond(problem, best_value, (int(th_best), tc)),
+                     evidence={"profile": "exact", "runner_up": "exact"})
+
+
+def reference_beyond(problem, best_value: float, answer):
+    """:func:`beyond_window` exhaustively (the yardstick)."""
+    k = problem.window_cells
+    big = _wide(problem)
+    kb = big.window_cells
+    if k == 0 or kb <= k:
+        return None
+    s = searcher_for(big)
+    ring = [t for t in translation_offsets(kb) if max(abs(t[0]), abs(t[1])) > k]
+    out = None
+    for th in range(360):
+        vals = s.values(float(th), ring)
+        for t, v in zip(ring, vals, strict=True):
+            if v > best_value and (out is None or v > out[2]) and _apart((th, t), answer):
+                out = (float(th), big.offset_m(*t), float(v))
+    return out
+
+
+def spec_search(problem) -> Alignment:
+    """The definition in numpy: every angle × translation on whole ROIs (:mod:`merger.similarity`)."""
+    fn = measure_fn(problem.measure)
+    ts = translation_offsets(problem.window_cells)
+    refs = [problem.at(a, b).ref_roi() for a, b in ts]
+    table = np.empty((len(ts), 360))
+    for th in range(360):
+        mov = problem.moving_roi(float(th))
+        for i, r in enumerate(refs):
+            table[i, th] = fn(r, mov).value
+    i_best, th_best = np.unravel_index(int(np.argmax(table)), table.shape)
+    tc = ts[int(i_best)]
+    angles = fine_angles(float(th_best))
+    sims = [fn(refs[int(i_best)], problem.moving_roi(float(a))) for a in angles]
+    vals = np.array([x.value for x in sims])
+    kf = int(np.argmax(vals))
+    theta = wrap_deg(float(angles[kf]))
+    profile = table.max(axis=0)
+    return Alignment(theta, float(vals[kf]), sims[kf].counts, problem.measure, "spec", problem.roi_m, profile,
+                     runner_up(profile, theta), window_m=problem.window_m, translation_m=problem.offset_m(*tc),
+                     cells=tc, fine=(angles, vals))

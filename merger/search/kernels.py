@@ -1,0 +1,395 @@
+"""Compiled kernels of the search: exact counts, region bounds and the branch and bound.
+
+Everything here works on the arrays of :class:`merger.search.prepared.Prepared` (the lattice tables of
+:mod:`merger.search.lattice`) and is compiled with ``@njit(cache=True, nogil=True)`` (no fastmath): the
+kernels release the GIL, so the searches of a merge cycle run side by side on threads.
+
+* :func:`fill_moving` — the moving ROI under one angle (dense states and its occupied points).
+* :func:`exact_counts` — agr̃, dis (and free/free) at one (θ, t): the moving ROI's occupied points
+  read the reference through the tables; the reference's occupied cells read the moving ROI through
+  the tables' preimages (Lemma 2).
+* :func:`region_bound` — an upper bound of the measure over a sector of angles × a box of
+  translations, from the reference's occupied cells (pooled in blocks of 2^L cells) looked up in
+  summed-area tables of the moving map over the disc every lookup of the region can reach (Lemma 3).
+* :func:`branch_and_bound` — best-first over (sector, box) regions; a region is dropped when its bound
+  key cannot come before the incumbent in the reference's order (Lemma 5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .lattice import moving_states
+from .measures import BIRK_CARPIN, NCC, upper_of, value_of
+
+EPS_CELLS = 1e-6  # margin of the bound's discs (cells): covers the bound's own float rounding
+LEVELS = 5  # reference blocks of 1, 2, 4, 8, 16 cells
+
+
+@njit(cache=True, nogil=True)
+def fill_moving(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, dense, pocc):
+    """The moving ROI under one angle into ``dense`` (n·n) and its occupied points into ``pocc``;
+    returns (number of occupied points, number of free points)."""
+    n_occ, n_free = moving_states(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, dense)
+    k = 0
+    for p in range(n * n):
+        if dense[p] == 2:
+            pocc[k] = p
+            k += 1
+    return n_occ, n_free
+
+
+@njit(cache=True, nogil=True)
+def exact_counts(dense, pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, ilo, ihi, jlo, jhi, n,
+                 need_ff):
+    """(agr, dis, ff) of the moving ROI ``dense`` against the reference ROI at translation (ai, bi)."""
+    agr = 0
+    dis = 0
+    for t in range(n_occ):  # moving occupied: the reference cell it reads
+        p = pocc[t]
+        i = p // n
+        j = p - i * n
+        r = rows[bi, i]
+        c = cols[ai, j]
+        if r >= 0 and c >= 0:
+            s = ref[r, c]
+            if s == 2:
+                agr += 1
+            elif s == 1:
+                dis += 1
+    for q in range(qr.size):  # reference occupied: the lattice points that read it, against moving free
+        r = qr[q] - rlo
+        c = qc[q] - clo
+        for i in range(ilo[bi, r], ihi[bi, r]):
+            for j in range(jlo[ai, c], jhi[ai, c]):
+                if dense[i * n + j] == 1:
+                    dis += 1
+    ff = 0
+    if need_ff:
+        for i in range(n):
+            r = rows[bi, i]
+            if r < 0:
+                continue
+            for j in range(n):
+                c = cols[ai, j]
+                if c >= 0 and ref[r, c] == 1 and dense[i * n + j] == 1:
+                    ff += 1
+    return agr, dis, ff
+
+
+@njit(cache=True, nogil=True)
+def _sat(t, r0, r1, c0, c1):
+    """Sum of the cells [r0, r1] × [c0, c1] (inclusive) of a summed-area table with a zero border."""
+    return t[r1 + 1, c1 + 1] - t[r0, c1 + 1] - t[r1 + 1, c0] + t[r0, c0]
+
+
+@njit(cache=True, nogil=True)
+def region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sat, mh, mw,
+                 th_mid, half_rad, box, level):
+    """(agr_hi, dis_lo) over the angles within ``half_rad`` of ``th_mid`` (degrees) and the box
+    ``box`` = (a0, a1, b0, b1) of translation indices (Lemma 3).
+
+    geo = (n, res, res_m, mox, moy, mcx, mcy, half): the lattice and the moving map's geometry.
+    axes_r / axes_c = (base, dev, mult, lo) per axis: the reference row (column) read by lattice row i at
+    translation index b is base + b + i ± dev, at most ``mult`` lattice rows read one cell, ``lo`` is
+    the first reference row of the tables. p1r / p1c: per axis, prefix counts over translations of
+    "cell read at least once". blk: (row, col, count) of the reference's occupied cells pooled in blocks
+    (level l: blocks of 2^l cells, rows ``lvl_start[l]:lvl_start[l+1]``)."""
+    n = int(geo[0])
+    res, res_m, mox, moy, mcx, mcy, half = geo[1], geo[2], geo[3], geo[4], geo[5], geo[6], geo[7]
+    base_r, dev_r, mult_r, lo_r = axes_r[0], axes_r[1], axes_r[2], axes_r[3]
+    base_c, dev_c, mult_c, lo_c = axes_c[0], axes_c[1], axes_c[2], axes_c[3]
+    a0, a1, b0, b1 = box[0], box[1], box[2], box[3]
+    m = (n - 1) / 2.0
+    t = math.radians(-th_mid)
+    co, si = math.cos(t), math.sin(t)
+    chord = 2.0 * math.sin(half_rad / 2.0) if half_rad > 0 else 0.0
+    hl = ((1 << level) - 1) / 2.0
+    ha = (a1 - a0) / 2.0 + dev_c + hl
+    hb = (b1 - b0) / 2.0 + dev_r + hl
+    rho_t = res * math.sqrt(ha * ha + hb * hb)
+    ac = (a0 + a1) / 2.0
+    bc = (b0 + b1) / 2.0
+    nb = b1 - b0 + 1
+    na = a1 - a0 + 1
+    size = 1 << level
+    # rows (columns) read by every translation of the box on a plain axis: base + b1 .. base + b0 + n − 1
+    plain = dev_r == 0 and dev_c == 0
+    ar0, ar1 = base_r + b1, base_r + b0 + n - 1
+    ac0, ac1 = base_c + a1, base_c + a0 + n - 1
+    agr = 0
+    dis = 0
+    w_agr = mult_r * mult_c
+    for q in range(lvl_start[level], lvl_start[level + 1]):
+        rr = blk[q, 0]  # first row / column of the block
+        cc = blk[q, 1]
+        cnt = blk[q, 2]
+        kx = ((cc + hl - base_c - ac) - m) * res  # the block's center on the lattice, box center
+        ky = ((rr + hl - base_r - bc) - m) * res
+        px = co * kx - si * ky
+        py = si * kx + co * ky
+        rho = rho_t + chord * math.sqrt(kx * kx + ky * ky)
+        rc = rho / res_m + EPS_CELLS
+        u = ((mcx + px) - mox) / res_m
+        v = ((mcy + py) - moy) / res_m
+        c0 = math.floor(u - rc)
+        c1 = math.floor(u + rc)
+        r0 = math.floor(v - rc)
+        r1 = math.floor(v + rc)
+        if c1 < 0 or r1 < 0 or c0 >= mw or r0 >= mh:
+            continue  # every lookup outside the moving map: unknown
+        inside = c0 >= 0 and r0 >= 0 and c1 < mw and r1 < mh
+        cr0, cr1 = max(r0, 0), min(r1, mh - 1)
+        cc0, cc1 = max(c0, 0), min(c1, mw - 1)
+        if _sat(occ_sat, int(cr0), int(cr1), int(cc0), int(cc1)) > 0:
+            agr += cnt * w_agr
+            continue
+        if not inside or max(abs(px), abs(py)) + rho >= half * (1.0 - 1e-12) - 1e-9:
+            continue
+        area = (r1 - r0 + 1) * (c1 - c0 + 1)
+        if _sat(free_sat, int(r0), int(r1), int(c0), int(c1)) != area:
+            continue
+        # surely free at every lookup: dis for each translation that reads the block's cells
+        if plain:
+            if rr >= ar0 and rr + size - 1 <= ar1 and cc >= ac0 and cc + size - 1 <= ac1:
+                dis += cnt
+        elif level == 0:
+            ri = rr - lo_r
+            ci = cc - lo_c
+            if p1r[b1 + 1, ri] - p1r[b0, ri] == nb and p1c[a1 + 1, ci] - p1c[a0, ci] == na:
+                dis += cnt
+    return agr, dis
+
+
+@njit(cache=True, nogil=True)
+def _heap_push(hv, hi, size, v, i):
+    k = size
+    hv[k] = v
+    hi[k] = i
+    while k > 0:
+        p = (k - 1) >> 1
+        if hv[p] >= hv[k]:
+            break
+        hv[p], hv[k] = hv[k], hv[p]
+        hi[p], hi[k] = hi[k], hi[p]
+        k = p
+    return size + 1
+
+
+@njit(cache=True, nogil=True)
+def _heap_pop(hv, hi, size):
+    v, i = hv[0], hi[0]
+    size -= 1
+    hv[0] = hv[size]
+    hi[0] = hi[size]
+    k = 0
+    while True:
+        l = 2 * k + 1
+        if l >= size:
+            break
+        c = l
+        if l + 1 < size and hv[l + 1] > hv[l]:
+            c = l + 1
+        if hv[k] >= hv[c]:
+            break
+        hv[k], hv[c] = hv[c], hv[k]
+        hi[k], hi[c] = hi[c], hi[k]
+        k = c
+    return v, i, size
+
+
+@njit(cache=True, nogil=True)
+def _before(v, p, s, iv, ip, is_):
+    """Whether the key (v, −p, −s) comes before (is greater than) (iv, −ip, −is)."""
+    if v != iv:
+        return v > iv
+    if p != ip:
+        return p < ip
+    return s < is_
+
+
+@njit(cache=True, nogil=True)
+def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
+                     axes_r, axes_c, p1r, p1c, blk, lvl_start, mstates, occ_sat, free_sat,
+                     angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env):
+    """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
+
+    ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0).
+    angles/rot: the angles searched (degrees) and their R(−θ) entries; amask/tmask: the angles and
+    translations allowed; rank: the tie rank of each translation index b·(2k+1) + a; tsum/asum: the
+    measure's count tables per translation / per angle; excl_a × excl_t: elements excluded.
+    mode 0 orders elements by (value, −rank, −angle), mode 1 by (value, −angle, −rank).
+    inc = [value, p, s, angle, a, b, agr, dis, ff]: the incumbent, updated in place; env: per angle,
+    the largest bound or exact value seen (an upper envelope of the best value over translations).
+    Returns (regions bounded, exact evaluations)."""
+    res, res_m, mox, moy, mcx, mcy, half = ctx_f[0], ctx_f[1], ctx_f[2], ctx_f[3], ctx_f[4], ctx_f[5], ctx_f[6]
+    n, k, code, mode, need_ff, sector0 = ctx_i[0], ctx_i[1], ctx_i[2], ctx_i[3], ctx_i[4], ctx_i[5]
+    side = 2 * k + 1
+    n_ang = angles.size
+    mh, mw = mstates.shape
+    geo = np.array([n, res, res_m, mox, moy, mcx, mcy, half])
+    rmax = half * math.sqrt(2.0)
+    n_slots = slot_angle.size
+    cap = 4096
+    nodes = np.empty((cap, 6), np.int64)  # angle lo, hi, a0, a1, b0, b1
+    hv = np.empty(cap, np.float64)
+    hi_ = np.empty(cap, np.int64)
+    size = 0
+    n_nodes = 0
+    n_bounds = 0
+    n_exact = 0
+    box = np.empty(4, np.int64)
+    # the first regions: sectors of sector0 angles × the whole window
+    s0 = 0
+    while s0 < n_ang:
+        s1 = min(s0 + sector0, n_ang) - 1
+        if n_nodes >= cap:
+            break
+        nodes[n_nodes, 0] = s0
+        nodes[n_nodes, 1] = s1
+        nodes[n_nodes, 2] = 0
+        nodes[n_nodes, 3] = side - 1
+        nodes[n_nodes, 4] = 0
+        nodes[n_nodes, 5] = side - 1
+        size = _heap_push(hv, hi_, size, np.inf, n_nodes)
+        n_nodes += 1
+        s0 = s1 + 1
+    free_ids = np.empty(cap, np.int64)
+    n_free_ids = 0
+    child = np.empty((4, 6), np.int64)
+    while size > 0:
+        bval, nid, size = _heap_pop(hv, hi_, size)
+        lo, hi, a0, a1, b0, b1 = nodes[nid, 0], nodes[nid, 1], nodes[nid, 2], nodes[nid, 3], nodes[nid, 4], nodes[nid, 5]
+        free_ids[n_free_ids] = nid
+        n_free_ids += 1
+        # the region's smallest tie keys among its allowed elements
+        amin = -1
+        for x in range(lo, hi + 1):
+            if amask[x]:
+                amin = x
+                break
+        rmin = 1 << 40
+        for b in range(b0, b1 + 1):
+            for a in range(a0, a1 + 1):
+                if tmask[b * side + a] and rank[b * side + a] < rmin:
+                    rmin = rank[b * side + a]
+        if amin < 0 or rmin == 1 << 40:
+            continue
+        if mode == 0:
+            kp, ks = rmin, amin
+        else:
+            kp, ks = amin, rmin
+        if bval != np.inf and not _before(bval, kp, ks, inc[0], inc[1], inc[2]):
+            for x in range(lo, hi + 1):
+                env[x] = max(env[x], bval)
+            continue
+        single = lo == hi and a0 == a1 and b0 == b1
+        if single:
+            # exact evaluation
+            if excl_a[lo] and excl_t[b0 * side + a0]:
+                continue
+            slot = lo % n_slots
+            if slot_angle[slot] != lo:
+                no, nf = fill_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
+                                     rot[lo, 2], rot[lo, 3], slots_dense[slot], slots_pocc[slot])
+                slot_angle[slot] = lo
+                slot_counts[slot, 0] = no
+                slot_counts[slot, 1] = nf
+            agr, dis, ff = exact_counts(slots_dense[slot], slots_pocc[slot], slot_counts[slot, 0], ref, cols,
+                                        rows, a0, b0, qr, qc, axes_r[3], axes_c[3], ilo, ihi, jlo, jhi, n,
+                                        need_ff)
+            n_exact += 1
+            sx = tsum[b0 * side + a0]
+            sy = slot_counts[slot, 0] if code == NCC else slot_counts[slot, 1]
+            v = value_of(code, agr, dis, ff, sx, sy, n * n)
+            env[lo] = max(env[lo], v)
+            if _before(v, kp, ks, inc[0], inc[1], inc[2]):
+                inc[0], inc[1], inc[2] = v, kp, ks
+                inc[3], inc[4], inc[5] = lo, a0 - k, b0 - k
+                inc[6], inc[7], inc[8] = agr, dis, ff
+            continue
+        # split: the angles while the rotation moves the ROI's corners more than the box, else the box
+        span = (angles[hi] - angles[lo]) / 2.0
+        rot_cells = 2.0 * math.sin(math.radians(span) / 2.0) * rmax / res
+        box_cells = max(a1 - a0, b1 - b0) / 2.0
+        nc = 0
+        if hi > lo and (rot_cells >= box_cells or (a0 == a1 and b0 == b1)):
+            mid = (lo + hi) // 2
+            for (x0, x1) in ((lo, mid), (mid + 1, hi)):
+                child[nc, 0], child[nc, 1] = x0, x1
+                child[nc, 2], child[nc, 3], child[nc, 4], child[nc, 5] = a0, a1, b0, b1
+                nc += 1
+        else:
+            am = (a0 + a1) // 2
+            bm = (b0 + b1) // 2
+            for (xa0, xa1) in ((a0, am), (am + 1, a1)):
+                if xa0 > xa1:
+                    continue
+                for (xb0, xb1) in ((b0, bm), (bm + 1, b1)):
+                    if xb0 > xb1:
+                        continue
+                    child[nc, 0], child[nc, 1] = lo, hi
+                    child[nc, 2], child[nc, 3], child[nc, 4], child[nc, 5] = xa0, xa1, xb0, xb1
+                    nc += 1
+        for c in range(nc):
+            clo, chi = child[c, 0], child[c, 1]
+            box[0], box[1], box[2], box[3] = child[c, 2], child[c, 3], child[c, 4], child[c, 5]
+            th_mid = (angles[clo] + angles[chi]) / 2.0
+            half_rad = math.radians((angles[chi] - angles[clo]) / 2.0)
+            # the block level: blocks no wider than the region's own blur
+            blur = ((box[1] - box[0]) + (box[3] - box[2])) / 4.0 + 2.0 * math.sin(half_rad / 2.0) * rmax / res / 2.0
+            level = 0
+            while level + 1 < LEVELS and (1 << (level + 1)) <= blur:
+                level += 1
+            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sat,
+                                          mh, mw, th_mid, half_rad, box, level)
+            n_bounds += 1
+            sx_lo = 1 << 40
+            sx_hi = -1
+            if code == NCC or code == BIRK_CARPIN:
+                for b in range(box[2], box[3] + 1):
+                    for a in range(box[0], box[1] + 1):
+                        x = tsum[b * side + a]
+                        sx_lo = min(sx_lo, x)
+                        sx_hi = max(sx_hi, x)
+            sy_lo = 1 << 40
+            sy_hi = -1
+            if code == NCC or code == BIRK_CARPIN:
+                for x in range(clo, chi + 1):
+                    sy_lo = min(sy_lo, asum[x])
+                    sy_hi = max(sy_hi, asum[x])
+            ub = upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
+            if n_free_ids > 0:
+                cid = free_ids[n_free_ids - 1]
+                n_free_ids -= 1
+            else:
+                if n_nodes >= nodes.shape[0]:
+                    grown = np.empty((2 * nodes.shape[0], 6), np.int64)
+                    grown[:n_nodes] = nodes[:n_nodes]
+                    nodes = grown
+                    hv2 = np.empty(2 * hv.size, np.float64)
+                    hv2[:size] = hv[:size]
+                    hv = hv2
+                    hi2 = np.empty(2 * hi_.size, np.int64)
+                    hi2[:size] = hi_[:size]
+                    hi_ = hi2
+                    fi2 = np.empty(2 * free_ids.size, np.int64)
+                    fi2[:n_free_ids] = free_ids[:n_free_ids]
+                    free_ids = fi2
+                cid = n_nodes
+                n_nodes += 1
+            for z in range(6):
+                nodes[cid, z] = child[c, z]
+            if size >= hv.size:
+                hv2 = np.empty(2 * hv.size, np.float64)
+                hv2[:size] = hv[:size]
+                hv = hv2
+                hi2 = np.empty(2 * hi_.size, np.int64)
+                hi2[:size] = hi_[:size]
+                hi_ = hi2
+            size = _heap_push(hv, hi_, size, ub, cid)
+    return n_bounds, n_exact

@@ -1,0 +1,150 @@
+"""Sub-cell refinement of a grid answer (on by default): θ and t below the search's 1°/0.1°/one-cell grid.
+
+1. Ties first: where several fine angles share the best score (a plateau), θ starts at its middle.
+2. Then a continuous local optimisation of a smooth score: the reference's occupied cells blurred
+   (Gaussian, σ = 1 cell) into a likelihood field, read bilinearly at the moving ROI's occupied cell
+   centres placed by (θ, t); a pattern search within ±1° of the start and ±1 cell of the grid
+   translation (and inside the window). A parabola through the grid's own scores was tried first and
+   rejected: nearest-neighbour scores carry little sub-cell information, and its offsets lowered the
+   whole-map ν of correct merges below ν_min.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from ..grid import OCCUPIED_S
+from .problem import fine_angles, wrap_deg
+
+
+def square_crop(grid, center, reach: float):
+    """The cells of ``grid`` within ``reach`` metres of ``center`` on each axis (unknown outside the grid)
+    and the crop's origin (metres)."""
+    r = grid.resolution
+    c0 = int(math.floor((center[0] - reach - grid.origin[0]) / r))
+    r0 = int(math.floor((center[1] - reach - grid.origin[1]) / r))
+    size = int(math.ceil(2 * reach / r)) + 2
+    out = np.zeros((size, size), np.uint8)
+    rs0, rs1 = max(r0, 0), min(r0 + size, grid.height)
+    cs0, cs1 = max(c0, 0), min(c0 + size, grid.width)
+    if rs0 < rs1 and cs0 < cs1:
+        out[rs0 - r0:rs1 - r0, cs0 - c0:cs1 - c0] = grid.states[rs0:rs1, cs0:cs1]
+    return out, (grid.origin[0] + c0 * r, grid.origin[1] + r0 * r)
+
+
+REFINE_SIGMA_CELLS = 1.0  # the smoothing of the reference's occupied cells (a likelihood field)
+REFINE_MAX_DEG = 1.0  # the refinement stays within the thesis's fine window (±1°) of the grid angle ...
+REFINE_MAX_CELLS = 1.0  # ... and within one cell of the grid translation (and inside the window)
+
+
+def _plateau_middle(angles: np.ndarray, vals: np.ndarray, i: int) -> float:
+    """The middle of the run of fine angles around index ``i`` whose score equals the best one."""
+    top = vals[i]
+    lo = hi = i
+    while lo > 0 and vals[lo - 1] == top:
+        lo -= 1
+    while hi < vals.size - 1 and vals[hi + 1] == top:
+        hi += 1
+    return float(angles[lo] + angles[hi]) / 2.0
+
+
+def refine_alignment(problem, al, evaluator=None):
+    """The alignment refined below the search grid; the grid answer stays in ``theta_grid_deg`` and
+    ``translation_grid_m``.
+
+    1. Ties first: where several fine angles share the best score (a plateau), θ starts at its middle.
+    2. Then a continuous local optimisation of a smooth score: the reference's occupied cells blurred
+       (Gaussian, σ = 1 cell) into a likelihood field, read bilinearly at the moving ROI's occupied cell
+       centres placed by (θ, t); a pattern search (steps halved down to 0.005° and 1/32 cell) within
+       ±1° of the start and ±1 cell of the grid translation (and inside the window). The field and
+       the points are real-valued, so the optimum lies between grid values; a symmetric score (a map
+       against itself) does not move the start. With no window only θ moves.
+    """
+    theta_g = al.theta_grid_deg
+    a0, b0 = al.cells
+    if al.fine is not None and np.any(np.isclose(wrap_deg(al.fine[0]), theta_g, atol=1e-9)):
+        angles, vals = al.fine
+    else:
+        angles = fine_angles(theta_g)
+        from .engine import searcher_for
+
+        vals = searcher_for(problem).values_at_angles(angles, (a0, b0))
+    angles = np.asarray(angles, np.float64)
+    vals = np.asarray(vals, np.float64)
+    i = int(np.flatnonzero(np.isclose(wrap_deg(angles), theta_g, atol=1e-9))[0])
+    theta0 = _plateau_middle(angles, vals, i)
+    t0 = problem.offset_m(a0, b0)
+    theta, t = _smooth_refine(problem, theta0, t0)
+    return replace(al, theta_deg=wrap_deg(round(theta, 9)), translation_m=t, refined=True)
+
+
+def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, float]]:
+    ref, mov = problem.ref, problem.moving
+    res = ref.resolution
+    n = problem.n
+    half = n * res / 2.0
+    w_m = problem.window_m if problem.window_cells > 0 else 0.0
+    # moving ROI's occupied cell centres, relative to the moving center (metres)
+    cm = np.asarray(problem.center_moving, np.float64)
+    rm = mov.resolution
+    c0 = max(int(math.floor((cm[0] - half * math.sqrt(2) - mov.origin[0]) / rm)), 0)
+    c1 = min(int(math.ceil((cm[0] + half * math.sqrt(2) - mov.origin[0]) / rm)), mov.width)
+    r0 = max(int(math.floor((cm[1] - half * math.sqrt(2) - mov.origin[1]) / rm)), 0)
+    r1 = min(int(math.ceil((cm[1] + half * math.sqrt(2) - mov.origin[1]) / rm)), mov.height)
+    if c0 >= c1 or r0 >= r1:
+        return theta0, (float(t0[0]), float(t0[1]))
+    rr, cc = np.nonzero(mov.states[r0:r1, c0:c1] == OCCUPIED_S)
+    p = np.stack([mov.origin[0] + (cc + c0 + 0.5) * rm, mov.origin[1] + (rr + r0 + 0.5) * rm], axis=1) - cm
+    p = p[(np.abs(p) < half).all(axis=1)]  # inside the moving ROI's square
+    if p.shape[0] < 3:
+        return theta0, (float(t0[0]), float(t0[1]))
+    # the reference's occupied cells around c_ref, blurred
+    cr = np.asarray(problem.center_ref, np.float64)
+    crop, org = square_crop(ref, cr, half * math.sqrt(2) + w_m + 4 * res)
+    field = cv2.GaussianBlur((crop == OCCUPIED_S).astype(np.float32), (0, 0), REFINE_SIGMA_CELLS)
+    org = np.asarray(org, np.float64)
+
+    def scores(cands):
+        """Mean field value at the moving points for each (θ, tx, ty)."""
+        c = np.asarray(cands, np.float64)
+        th = np.radians(c[:, 0])
+        cs, sn = np.cos(th)[:, None], np.sin(th)[:, None]
+        base = cr - org
+        mx = ((cs * p[:, 0] - sn * p[:, 1]) + (base[0] + c[:, 1:2])) / res - 0.5  # crop pixel coordinates
+        my = ((sn * p[:, 0] + cs * p[:, 1]) + (base[1] + c[:, 2:3])) / res - 0.5
+        out = cv2.remap(field, mx.astype(np.float32), my.astype(np.float32), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return out.astype(np.float64).mean(axis=1)
+
+    x = np.array([theta0, float(t0[0]), float(t0[1])])
+    lo = np.array([theta0 - REFINE_MAX_DEG, t0[0] - REFINE_MAX_CELLS * res, t0[1] - REFINE_MAX_CELLS * res])
+    hi = np.array([theta0 + REFINE_MAX_DEG, t0[0] + REFINE_MAX_CELLS * res, t0[1] + REFINE_MAX_CELLS * res])
+    if w_m > 0:
+        lo[1:] = np.maximum(lo[1:], -w_m)
+        hi[1:] = np.minimum(hi[1:], w_m)
+    else:
+        lo[1:] = hi[1:] = 0.0
+    step = np.array([0.1, 0.25 * res, 0.25 * res])
+    dims = [0] if w_m == 0 else [0, 1, 2]
+    best = scores([x])[0]
+    for _ in range(200):
+        cands = []
+        for d in dims:
+            for sgn in (-1.0, 1.0):
+                y = x.copy()
+                y[d] = min(max(y[d] + sgn * step[d], lo[d]), hi[d])
+                if y[d] != x[d]:
+                    cands.append(y)
+        v = scores(cands) if cands else np.empty(0)
+        j = int(np.argmax(v)) if v.size else -1
+        if j >= 0 and v[j] > best * (1 + 1e-9) + 1e-12:
+            x, best = cands[j], float(v[j])
+            continue
+        step /= 2.0
+        if step[0] < 0.005 and step[1] < res / 32:
+            break
+    return float(x[0]), (float(x[1]), float(x[2]))

@@ -102,14 +102,8 @@ class OfflineSettings:
 
 
 def default_search_method() -> str:
-    """``"fast"`` when a fast rotation search is registered in the merger, else ``"reference"``."""
-    from merger.search import SEARCH_METHODS
-
-    try:  # the fast path registers itself on import, if it exists
-        import merger.fast  # noqa: F401
-    except ImportError:
-        pass
-    return "fast" if "fast" in SEARCH_METHODS else "reference"
+    """``"fast"``: the exact branch and bound (the reference's answer)."""
+    return "fast"
 
 
 def method_params(sc: Scenario, method: str, settings: OfflineSettings) -> MergeParams:

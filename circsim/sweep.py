@@ -164,14 +164,11 @@ def run_one(task: RunTask) -> dict:
 
 
 def clear_merger_caches() -> None:
-    """Empty the merger's caches between runs (polar spectra, rotated ROIs, the fast search's sector
-    spectra). They are bounded; clearing them only keeps a worker's memory at its floor between runs."""
-    try:
-        from merger import fast, polar
-    except ImportError:
-        return
-    polar.clear_cache()
-    fast.clear_cache()
+    """Empty the merger's caches between runs (:func:`merger.search.clear_all`). They are bounded;
+    clearing them only keeps a worker's memory at its floor between runs."""
+    from merger.search import clear_all
+
+    clear_all()
 
 
 class HypothesisStats(Observer):

@@ -27,7 +27,11 @@ from .search import (
     Alignment,
     RotationProblem,
     angle_diff_deg,
+    beyond_window,
     fine_angles,
+    reference_beyond,
+    refine_alignment,
+    searcher_for,
     wrap_deg,
 )
 from .verify import Verification
@@ -113,16 +117,14 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
     The profile's runner-up angle (coarse, possibly approximate) is re-evaluated exactly over every
     translation of the window at the coarse angles within ±2° of it (more than 10° from ``al``), then
     refined as the search refines its answer (0.1° over ±1°, then below the grid when the problem asks
-    for it), so that both hypotheses are compared on equal terms. ``ev``: a
-    :class:`merger.window.WindowEvaluator` of ``problem`` to reuse (one is made otherwise)."""
-    from .window import WindowEvaluator
-
+    for it), so that both hypotheses are compared on equal terms. ``ev``: the
+    :class:`merger.search.engine.Searcher` of ``problem`` (the search's own by default)."""
     if margin <= 0:
         return None
     ru_deg, ru_score = al.runner_up
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
-    ev = ev if ev is not None else WindowEvaluator(problem)
+    ev = ev if ev is not None else searcher_for(problem)
     k = problem.window_cells
     ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
     top = None
@@ -130,7 +132,7 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
         th = float((round(ru_deg) + d) % 360)
         if abs(angle_diff_deg(th, al.theta_deg)) <= RUNNER_UP_MIN_SEPARATION_DEG:
             continue
-        vals = ev.evaluate(th, ts)
+        vals = ev.values(th, ts)
         i = int(np.argmax(vals))
         if top is None or vals[i] > top[0]:
             top = (float(vals[i]), th, ts[i])
@@ -147,13 +149,7 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     """A rival's fine angle at translation ``tc`` (the best of ``angles``, exactly), as an alignment like
     the search's — None when it scores ``margin`` or more below ``al``. ``th_c``, ``top_value``: its coarse
     angle and coarse score, for the guard beyond the window."""
-    from .sparse import SparseEvaluator
-    from .window import beyond_window, reference_beyond, refine_alignment
-
-    # many angles at one translation: the rotation problem about c_ref + t (its exact sparse evaluator,
-    # the same floats as the window evaluator's and the reference's, without a rotated ROI per angle)
-    sev = SparseEvaluator(problem.at(*tc))
-    vals = np.asarray(sev.scores([float(a) for a in angles]), np.float64)
+    vals = ev.values_at_angles(angles, tc)
     kf = int(np.argmax(vals))
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
     if al.score - score >= margin:
@@ -162,13 +158,13 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     # the guard beyond the window for the rival's own answer: a better alignment outside the window than
     # the rival refuses it as it would the best (the best may be the truth's peak cut by the window's
     # edge, and the rival the scene's half turn)
-    out = Alignment(theta, score, sev.similarity(float(angles[kf])).counts, al.measure, al.method, al.roi_m, al.profile,
+    out = Alignment(theta, score, ev.exact(float(angles[kf]), *tc)[1], al.measure, al.method, al.roi_m, al.profile,
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
                     _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)),
                     evidence={"profile": al.evidence["profile"],  # the rival's runner-up is al itself
-                              "runner_up": "approximate" if al.method == "climb" else "exact"})
-    return refine_alignment(problem, out, ev) if problem.refine else out
+                              "runner_up": "exact"})
+    return refine_alignment(problem, out) if problem.refine else out
 
 
 def shift_rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Alignment | None:
@@ -183,19 +179,17 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float, ev=None)
     passed whole-map verification (ν 0.79 and 0.85) and was a false merge in three cycles. As a rival, the
     truth's whole-map ν decides. Its fine angle (0.1° over ±1°) and sub-cell refinement follow the search's.
     ``ev``: as for :func:`rival`."""
-    from .window import WindowEvaluator
-
     k = problem.window_cells
     if margin <= 0 or k == 0:
         return None
-    ev = ev if ev is not None else WindowEvaluator(problem)
+    ev = ev if ev is not None else searcher_for(problem)
     a0 = problem.offset_m(*al.cells)
     far = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)
            if math.dist(problem.offset_m(a, b), a0) > RIVAL_SHIFT_M]
     if not far:
         return None
     th_c = float(int(round(al.theta_grid_deg)) % 360)  # the best's coarse angle (its rotated ROI is cached)
-    vals = ev.evaluate(th_c, far)
+    vals = ev.values(th_c, far)
     i = int(np.argmax(vals))
     top_value, tc = float(vals[i]), far[i]
     if al.score - top_value >= margin + PREFILTER_SLACK:
@@ -220,11 +214,8 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
     and unresolved the best alignment is returned with the record, whose ``used``
     is False: the caller does not use the pair."""
-    from .window import evaluator_for
-
-    # one evaluator for both rivals (the translation rival always needs one when it can exist): the
-    # search's own when it has just searched this problem
-    ev = evaluator_for(problem) if margin > 0 and problem.window_cells > 0 else None
+    # one searcher for both rivals: the search's own (its lattice tables), kept by merger.search.caches
+    ev = searcher_for(problem) if margin > 0 else None
     rivals = [r for r in (rival(problem, al, margin, ev), shift_rival(problem, al, margin, ev)) if r is not None]
     if not rivals:
         return al, None

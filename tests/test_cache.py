@@ -1,15 +1,14 @@
-"""Bounded caches: LRU order, entry and byte bounds, content keys; and the merger's caches staying within
-their bounds over many merge cycles with changing maps (issue 10: a long run must not grow)."""
+"""Bounded caches: LRU order, entry and byte bounds, content keys; and the search's one cache
+(:mod:`merger.search.caches`) staying within its bound over many merge cycles with changing maps (a long
+run must not grow), its answers equal to those computed after :func:`merger.search.clear_all`."""
 
 import numpy as np
 import pytest
 
-import merger.fast as fast
-import merger.polar as polar
-import merger.window as window
 from merger.cache import BoundedCache, array_digest
 from merger.grid import OccupancyGrid
 from merger.online import MapMessage, TeamMerger
+from merger.search import caches
 from merger.team import MergeParams, merge_team
 from tests.conftest import three_views
 
@@ -48,23 +47,6 @@ def test_array_digest_is_a_content_key():
     assert array_digest(a[:, ::2]) == array_digest(np.ascontiguousarray(a[:, ::2]))
 
 
-def test_polar_spectra_of_a_changed_map_are_recomputed_not_served_stale():
-    _, _, maps, _ = three_views(3)
-    g, c = maps[0]
-    lay = polar.polar_layout(160, g.resolution, 1)
-    polar.clear_cache()
-    first = polar.polar_spectra(g, c, lay)
-    assert polar.polar_spectra(OccupancyGrid(g.states.copy(), g.resolution, g.origin), c, lay) is first
-    changed = g.states.copy()
-    i, j = np.argwhere(changed == 2)[0]
-    changed[i, j] = 1  # one wall cell near the view freed
-    g2 = OccupancyGrid(changed, g.resolution, g.origin)
-    again = polar.polar_spectra(g2, c, lay)
-    polar.clear_cache()
-    assert np.array_equal(again, polar.polar_spectra(g2, c, lay))
-    assert not np.array_equal(again, first)
-
-
 def _perturbed(grid: OccupancyGrid, rng) -> OccupancyGrid:
     """The grid with a few known cells near the center flipped between free and occupied: a new map."""
     s = grid.states.copy()
@@ -75,14 +57,9 @@ def _perturbed(grid: OccupancyGrid, rng) -> OccupancyGrid:
 
 
 @pytest.mark.parametrize("window_m", [0.0, 0.2])
-def test_caches_stay_within_their_bounds_over_many_cycles(monkeypatch, window_m):
-    """Every cycle brings a new map; the spectra, index and rotation caches (shrunk here so that a few
-    cycles fill them) never exceed their bounds, the pair reuse holds only the current pairs, and
-    every cycle equals a cycle computed with empty caches."""
-    monkeypatch.setattr(polar, "_CACHE", BoundedCache(5, 2 * 2**20))
-    monkeypatch.setattr(polar, "_INDEX", BoundedCache(3, 2**30))
-    monkeypatch.setattr(window, "ROT_CACHE_BYTES", 4 * 2**20)
-    monkeypatch.setattr(fast, "_MOVING_CACHE", BoundedCache(4, 4 * 2**20))  # the rotation-only search's
+def test_caches_stay_within_their_bounds_over_many_cycles(window_m):
+    """Every cycle brings a new map; the searcher cache never holds more than its bound, the pair reuse
+    holds only the current pairs, and a cycle equals one computed with an empty cache."""
     _, names, maps, _ = three_views(3)
     params = MergeParams(roi_m=6.0, window_m=window_m)
     rng = np.random.default_rng(0)
@@ -95,15 +72,10 @@ def test_caches_stay_within_their_bounds_over_many_cycles(monkeypatch, window_m)
         current[n] = _perturbed(current[n], rng)
         tm.receive(MapMessage(n, float(k), current[n], maps[names.index(n)][1]))
         res = tm.cycle()
-        assert len(polar._CACHE) <= 5 and polar._CACHE.nbytes <= 2 * 2**20
-        assert len(polar._INDEX) <= 3
-        assert window._ROT_BYTES[0] <= 4 * 2**20
+        assert len(caches._SEARCHERS) <= caches.MAX_ENTRIES
         assert len(tm._pairs) <= 3
-        assert len(fast._MOVING_CACHE) <= 4 and fast._MOVING_CACHE.nbytes <= 4 * 2**20
         if k == 6:
             cached = [o.to_dict() for o in res.orders]
-            polar.clear_cache()
-            fast.clear_cache()
+            caches.clear_all()
+            assert len(caches._SEARCHERS) == 0
             assert [o.to_dict() for o in merge_team(tm.inputs(), params).orders] == cached
-    used = polar._CACHE if window_m else fast._MOVING_CACHE  # W = 0: the sector spectra (merger.fast)
-    assert used.hits > 0 and used.misses > 5  # since cycle 6: used, and evicting

@@ -1,13 +1,11 @@
-"""The rotation × translation search (merger.window) against ground truth.
+"""The rotation × translation search (merger.search) against ground truth.
 
 x_ref = c_ref + t + R(θ)(x_mov − c_mov), t within ±window_m in one-cell steps. Checked here:
 
 * W = 0 is the thesis's rotation-only search bit for bit (a yardstick written out in this file);
 * the window's parameters and their errors;
-* the exact evaluator (WindowEvaluator) and the OpenCV rotation (rotated_roi_fast) against the
-  reference code paths (problem.at(a, b).evaluate, rotated_roi), incl. cell-border ties;
-* the fast windowed method against the exhaustive reference on fixed seeds (it is exact by
-  construction: tests/test_window_exact.py has the property test over arbitrary grids);
+* the fast windowed method against the exhaustive reference on fixed seeds (the property tests over
+  arbitrary grids are in tests/test_search_engine.py);
 * recovery of (θ*, t*) with rough centers on generated rooms and on the real office map, and in a team
   merge (where the rotation-only search fails with the same center errors);
 * the grid answer (refine=False) and the bounds of the sub-cell refinement.
@@ -20,36 +18,35 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import merger
 from merger import load_map
 from merger.grid import OccupancyGrid
-from merger.search import MAX_WINDOW_FRACTION, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
+from merger.search import (
+    MAX_WINDOW_FRACTION,
+    RotationProblem,
+    angle_diff_deg,
+    check_window,
+    search,
+    searcher_for,
+    translation_offsets,
+    window_cells,
+    wrap_deg,
+)
 from merger.similarity import measure_fn
 from merger.synthetic import (
     arc_viewpoints,
-    partial_view,
     partial_view_of_grid,
     random_view_pair,
     robot_pose_on_circle,
-    room_scene,
     widest_free_point,
     window_case,
     world_to_frame,
 )
 from merger.team import MapInput, MergeParams, merge_team, place_on_frame0
-from merger.transform import (
-    extract_roi,
-    roi_cells,
-    rotated_roi,
-    rotated_roi_classes,
-    rotated_roi_fast,
-    rotation,
-)
+from merger.transform import extract_roi, roi_cells, rotated_roi, rotation
 from merger.verify import verify
-from merger.window import WindowEvaluator, exact_window_runner_up, translation_offsets, window_cells
 from tests.conftest import three_views
 
 REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
@@ -216,31 +213,8 @@ def _translations(rng, k, reach):
     return sorted(ts)
 
 
-def assert_evaluator_exact(problem, angles, ts):
-    ev = WindowEvaluator(problem)
-    subs = {t: problem.at(*t) for t in ts}
-    for theta in angles:
-        got = ev.evaluate(theta, ts)
-        want = np.array([subs[t].evaluate(theta).value for t in ts])
-        np.testing.assert_array_equal(got, want, err_msg=f"θ = {theta!r}, {problem.measure}")
-        # asked again in another order: from its table, the same values
-        np.testing.assert_array_equal(ev.evaluate(theta, ts[::-1]), want[::-1])
-    t = ts[len(ts) // 2]
-    assert ev.counts(angles[0], t) == subs[t].evaluate(angles[0]).counts
 
 
-@pytest.mark.parametrize("kind", ["views", "noise", "identical", "sparse", "symmetric"])
-@pytest.mark.parametrize("centers", ["given", "corner", "center"])
-def test_window_evaluator_equals_problem_evaluate(kind, centers):
-    c = window_case(7, kind, roi_m=(2.4, 3.2), window_m=(0.2, 0.3))
-    rng = np.random.default_rng([7, len(kind), len(centers)])
-    cr = _snap(c.center_ref, c.ref.origin, centers)
-    cm = _snap(c.center_moving, c.moving.origin, centers)
-    for m in MEASURES:
-        p = RotationProblem(c.ref, c.moving, cr, cm, c.roi_m, m, c.window_m)
-        k = p.window_cells
-        assert k >= 4
-        assert_evaluator_exact(p, _angles(rng), _translations(rng, k, k + 1))
 
 
 def _random_grid(rng, shape, res, origin):
@@ -305,60 +279,12 @@ def _inside(p, ts) -> bool:
     return True
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(**SMALL)
-def test_window_evaluator_and_rotated_roi_fast_on_small_random_grids(seed, n, measure, mres, round_origin,
-                                                                     modes, theta):
-    """Random ternary grids, ROIs of 4–40 cells, centers anywhere in a cell or exactly on its borders, the
-    reference grid holding the ROI of every translation (the tests below cover ROIs leaving it)."""
-    p, ts = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=True)
-    assert _inside(p, ts)
-    mov, cm = p.moving, p.center_moving
-    np.testing.assert_array_equal(rotated_roi_fast(mov, theta, cm, p.n, RES),
-                                  rotated_roi(mov, theta, cm, p.center_ref, p.n, RES))
-    assert_evaluator_exact(p, [theta, wrap_deg(theta + 0.1)], ts)
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(**SMALL)
-def test_rotated_roi_fast_equals_rotated_roi_anywhere(seed, n, measure, mres, round_origin, modes, theta):
-    """The same with no limit on where the ROIs fall (off the grids too): the rotated ROI and the
-    evaluator's values."""
-    p, ts = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=False)
-    for a in (theta, wrap_deg(theta + 0.1), wrap_deg(theta + 90.0)):
-        np.testing.assert_array_equal(rotated_roi_fast(p.moving, a, p.center_moving, p.n, RES),
-                                      rotated_roi(p.moving, a, p.center_moving, None, p.n, RES))
-    assert_evaluator_exact(p, [theta], ts)
 
 
-@settings(max_examples=80, deadline=None, derandomize=True)
-@given(**SMALL)
-def test_rotated_roi_classes_bracket_the_reference_states(seed, n, measure, mres, round_origin, modes, theta):
-    """The certificate's bound classes (four uncertified warps, merger.transform.rotated_roi_classes):
-    lo ≤ the reference's rotated state ≤ hi at every lattice point — centers anywhere in a cell or on its
-    borders, whole and tenth-degree angles, the ROI leaving the grid."""
-    p, _ = _small_problem(seed, n, measure, mres, round_origin, modes, ref_holds_the_window=False)
-    for a in (theta, wrap_deg(theta + 0.1), wrap_deg(theta + 90.0), float(round(theta))):
-        exact = rotated_roi(p.moving, a, p.center_moving, None, p.n, RES).reshape(-1)
-        cls = rotated_roi_classes(p.moving, a, p.center_moving, p.n, RES)
-        if cls is None:  # the exact path decides (a lookup too close to call, or beyond the warp's range)
-            continue
-        lo, hi = cls
-        assert (lo <= exact).all() and (exact <= hi).all()
 
 
-def test_rotated_roi_classes_are_tight_on_a_map():
-    """On a generated room (ROI 160 cells, a center inside a cell) the bound classes are used (not None)
-    and leave the state open only at the lattice points whose lookup lies near a cell border: a few."""
-    rng = np.random.default_rng(5)
-    scene = room_scene(rng)
-    g, c = partial_view(scene, robot_pose_on_circle(90.0, 1.6), arc_viewpoints(90.0, 30.0, 1.6),
-                        size_m=10.0, rng=rng)
-    for theta in (0.0, 17.0, 123.4, 271.0):
-        exact = rotated_roi(g, theta, c, None, 160, RES).reshape(-1)
-        lo, hi = rotated_roi_classes(g, theta, c, 160, RES)
-        assert (lo <= exact).all() and (exact <= hi).all()
-        assert np.count_nonzero(lo != hi) < 0.02 * exact.size
 
 
 # The ROI lattice about c_ref + t leaving the reference grid (a reference grid narrower than the ROI plus
@@ -371,15 +297,6 @@ def _twenty_by_twenty():
     return g[0], g[1]
 
 
-@pytest.mark.parametrize("c_ref", [(0.0, 0.5), (-0.3, 0.5), (1.5, 1.5), (0.5, 0.5)])
-def test_window_evaluator_with_the_roi_leaving_the_reference_grid(c_ref):
-    ref, mov = _twenty_by_twenty()
-    p = RotationProblem(ref, mov, c_ref, (0.5, 0.5), 1.2, "similarity", 0.1)  # n = 24 cells, K = 2
-    ts = [(a, b) for a in range(-3, 4) for b in range(-3, 4)]  # the window and one cell beyond
-    for theta in (0.0, 33.3, 180.0):
-        got = WindowEvaluator(p).evaluate(theta, ts)
-        want = np.array([p.at(a, b).evaluate(theta).value for a, b in ts])
-        np.testing.assert_array_equal(got, want)
 
 
 def test_windowed_search_on_a_map_smaller_than_the_roi():
@@ -504,7 +421,7 @@ def test_the_guard_finds_the_truth_outside_the_window():
         wide = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 1.0)
         cells = tuple(int(round(x / 0.05)) for x in t)
         assert max(abs(x) for x in cells) > p.window_cells
-        assert WindowEvaluator(wide).evaluate(th, [cells])[0] == v
+        assert searcher_for(wide).values(th, [cells])[0] == v
         assert v > al.profile.max() - 1e-12
     assert checked >= 12, checked  # 16 of the 24 seeds
 
@@ -568,12 +485,12 @@ def test_a_half_turn_with_a_rough_center_fails_whole_map_verification(kind, seed
     for seeds 0–11 — pillars and boxes without walls give little whole-map agreement.)"""
     c = window_case(seed, kind, roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
     p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 8.0, "similarity", 0.5)
-    ev = WindowEvaluator(p)
+    ev = searcher_for(p)
     k = p.window_cells
     ts = [(a, b) for a in range(-k, k + 1) for b in range(-k, k + 1)]
     flip = round(c.theta_deg + 180.0)
     best = max((float(v), float(th % 360), ts[i]) for th in range(flip - 4, flip + 5)
-               for i, v in enumerate(ev.evaluate(float(th % 360), ts)))
+               for i, v in enumerate(ev.values(float(th % 360), ts)))
     verdicts = _whole_map_checks(c, [(c.theta_deg, c.translation_m), (best[1], p.offset_m(*best[2]))])
     assert verdicts[0].passed and not verdicts[1].passed, verdicts
 
@@ -623,23 +540,22 @@ def _grid_cases():
 
 
 def test_each_method_names_how_exact_its_profile_and_runner_up_are():
-    """Alignment.evidence (issue 11: runner-up and profile exact, or named approximate in the API): the
-    reference searches exact; fast an upper-envelope profile, its runner-up exact without a window and
-    approximate with one; climb approximate. The JSON record carries it, and the exact windowed runner-up
-    is available on demand (it equals the reference's)."""
+    """Alignment.evidence (runner-up and profile exact, or named an envelope in the API): the reference
+    exact; fast an upper-envelope profile (never above the best coarse value) and an exact runner-up
+    (equal to the reference's). The JSON record carries it."""
     c = _grid_cases()[0]
     want = {("reference", 0.0): ("exact", "exact"), ("fast", 0.0): ("upper_envelope", "exact"),
-            ("reference", 0.2): ("exact", "exact"), ("fast", 0.2): ("upper_envelope", "approximate"),
-            ("climb", 0.2): ("approximate", "approximate")}
+            ("reference", 0.2): ("exact", "exact"), ("fast", 0.2): ("upper_envelope", "exact")}
     roi = 3.2  # a small ROI: the windowed reference stays cheap
     for (method, w), (profile, ru) in want.items():
         p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, roi, "similarity", w, refine=False)
         al = search(p, method)
         assert al.evidence == {"profile": profile, "runner_up": ru}, (method, w)
         assert al.to_dict()["evidence"] == al.evidence
-        if (method, w) == ("fast", 0.2):
+        if method == "fast":
             ref = search(p, "reference")
-            assert exact_window_runner_up(p, al.theta_deg) == ref.runner_up
+            assert al.runner_up == ref.runner_up
+            assert np.all(al.profile >= ref.profile) and np.all(al.profile <= ref.profile.max())
 
 
 def test_grid_answer_and_refinement_bounds():
@@ -710,19 +626,3 @@ def test_team_with_rough_centers_is_rejected_without_the_window(seed):
     assert ok.accepted and max(ok.chosen.angle_errors_deg(truth).values()) <= 0.5
 
 
-def test_the_climb_method_is_the_fast_searchs_incumbent_without_the_certificate():
-    """Method "climb": the windowed fast search without its certificate (approximate, cheaper). On structured
-    views it finds the reference's grid answer like "fast"; rotation-only problems get the fast search."""
-    from merger.search import RotationProblem, search
-    from merger.synthetic import window_case
-
-    for seed in (1, 2):
-        c = window_case(seed, "views")
-        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity",
-                            min(c.window_m, c.roi_m / 4))
-        fast, climb = search(p, "fast"), search(p, "climb")
-        assert climb.method == "climb" and fast.method == "fast"
-        assert (climb.theta_deg, climb.translation_m, climb.score) == (fast.theta_deg, fast.translation_m, fast.score)
-        flat = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, "similarity", 0.0)
-        a, b = search(flat, "fast"), search(flat, "climb")
-        assert (a.theta_deg, a.score) == (b.theta_deg, b.score)

@@ -63,6 +63,7 @@ class Searcher:
         self.slot_counts = np.zeros((n_slots, 2), np.int64)
         self.slot_angle = np.full(n_slots, -1, np.int64)
         self.stats = {"bounds": 0, "exact": 0}
+        self.hist = np.zeros(16, np.int64)  # bounds per block level (sectors, then single angles), cells read
         self.lock = threading.RLock()  # one search at a time per searcher (its ROI slots are shared)
 
     def _use(self, angles: np.ndarray):
@@ -105,10 +106,10 @@ class Searcher:
         env = np.full(angles.size, -np.inf)
         ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0], np.int64)
         nb, ne = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
-                                  p.axes_r, p.axes_c, p.p1r, p.p1c, p.blk, p.lvl_start, p.mstates, p.occ_sat,
+                                  p.axes_r, p.axes_c, p.blk, p.lvl_start, p.wr0, p.wc0, p.mstates, p.occ_sat,
                                   p.free_sat, angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
-                                  self.slot_counts, inc, env)
+                                  self.slot_counts, inc, env, self.hist)
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
         return inc, env

@@ -27,6 +27,8 @@ from .measures import BIRK_CARPIN, NCC, upper_of, value_of
 
 EPS_CELLS = 1e-6  # margin of the bound's discs (cells): covers the bound's own float rounding
 LEVELS = 5  # reference blocks of 1, 2, 4, 8, 16 cells
+SMALL_BOX = 4  # boxes narrower than this get exact per-translation weights (non-plain ROIs)
+ROT_WEIGHT = 1.0  # split the angles first unless the box blurs more than this × the corners' rotation
 
 
 @njit(cache=True, nogil=True)
@@ -87,7 +89,7 @@ def _sat(t, r0, r1, c0, c1):
 
 
 @njit(cache=True, nogil=True)
-def region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sat, mh, mw,
+def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, occ_sat, free_sat, mh, mw,
                  th_mid, half_rad, box, level):
     """(agr_hi, dis_lo) over the angles within ``half_rad`` of ``th_mid`` (degrees) and the box
     ``box`` = (a0, a1, b0, b1) of translation indices (Lemma 3).
@@ -95,9 +97,9 @@ def region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sa
     geo = (n, res, res_m, mox, moy, mcx, mcy, half): the lattice and the moving map's geometry.
     axes_r / axes_c = (base, dev, mult, lo) per axis: the reference row (column) read by lattice row i at
     translation index b is base + b + i ± dev, at most ``mult`` lattice rows read one cell, ``lo`` is
-    the first reference row of the tables. p1r / p1c: per axis, prefix counts over translations of
-    "cell read at least once". blk: (row, col, count) of the reference's occupied cells pooled in blocks
-    (level l: blocks of 2^l cells, rows ``lvl_start[l]:lvl_start[l+1]``)."""
+    the first reference row of the tables. blk: (row, col, count, weighted count, never skipped) of the
+    reference's occupied cells pooled in blocks (level l: blocks of 2^l cells, rows
+    ``lvl_start[l]:lvl_start[l+1]``; see :meth:`merger.search.prepared.Prepared._blocks`)."""
     n = int(geo[0])
     res, res_m, mox, moy, mcx, mcy, half = geo[1], geo[2], geo[3], geo[4], geo[5], geo[6], geo[7]
     base_r, dev_r, mult_r, lo_r = axes_r[0], axes_r[1], axes_r[2], axes_r[3]
@@ -113,25 +115,54 @@ def region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sa
     rho_t = res * math.sqrt(ha * ha + hb * hb)
     ac = (a0 + a1) / 2.0
     bc = (b0 + b1) / 2.0
-    nb = b1 - b0 + 1
-    na = a1 - a0 + 1
     size = 1 << level
-    # rows (columns) read by every translation of the box on a plain axis: base + b1 .. base + b0 + n − 1
-    plain = dev_r == 0 and dev_c == 0
-    ar0, ar1 = base_r + b1, base_r + b0 + n - 1
-    ac0, ac1 = base_c + a1, base_c + a0 + n - 1
+    # rows (columns) inside every ROI of the box: base + b1 + dev .. base + b0 + n − 1 − dev (Lemma 1)
+    ar0, ar1 = base_r + b1 + dev_r, base_r + b0 + n - 1 - dev_r
+    ac0, ac1 = base_c + a1 + dev_c, base_c + a0 + n - 1 - dev_c
     agr = 0
     dis = 0
-    w_agr = mult_r * mult_c
+    # small boxes of a ROI that is not a plain block: each cell weighted by its reads at these translations
+    exact_w = level == 0 and (dev_r > 0 or dev_c > 0) and b1 - b0 < SMALL_BOX and a1 - a0 < SMALL_BOX
     for q in range(lvl_start[level], lvl_start[level + 1]):
         rr = blk[q, 0]  # first row / column of the block
         cc = blk[q, 1]
         cnt = blk[q, 2]
-        kx = ((cc + hl - base_c - ac) - m) * res  # the block's center on the lattice, box center
-        ky = ((rr + hl - base_r - bc) - m) * res
+        w_hi = blk[q, 3]
+        w_lo = 1
+        rho_q = rho_t
+        if exact_w:
+            # the lattice rows and columns that read this cell at the box's translations, exactly
+            i0, i1, j0, j1 = n, -1, n, -1
+            wr_hi, wr_lo, wc_hi, wc_lo = 0, 2, 0, 2
+            for b in range(b0, b1 + 1):
+                x = wr0[b, q]
+                wr_hi = max(wr_hi, x)
+                wr_lo = min(wr_lo, x)
+                if x > 0:
+                    i0 = min(i0, ilo[b, rr - lo_r])
+                    i1 = max(i1, ihi[b, rr - lo_r] - 1)
+            for a in range(a0, a1 + 1):
+                x = wc0[a, q]
+                wc_hi = max(wc_hi, x)
+                wc_lo = min(wc_lo, x)
+                if x > 0:
+                    j0 = min(j0, jlo[a, cc - lo_c])
+                    j1 = max(j1, jhi[a, cc - lo_c] - 1)
+            w_hi = wr_hi * wc_hi
+            w_lo = 1 if wr_lo >= 1 and wc_lo >= 1 else 0
+            if w_hi == 0:
+                continue
+            kx = ((j0 + j1) / 2.0 - m) * res
+            ky = ((i0 + i1) / 2.0 - m) * res
+            hj = (j1 - j0) / 2.0
+            hi_ = (i1 - i0) / 2.0
+            rho_q = res * math.sqrt(hj * hj + hi_ * hi_)
+        else:
+            kx = ((cc + hl - base_c - ac) - m) * res  # the block's center on the lattice, box center
+            ky = ((rr + hl - base_r - bc) - m) * res
         px = co * kx - si * ky
         py = si * kx + co * ky
-        rho = rho_t + chord * math.sqrt(kx * kx + ky * ky)
+        rho = rho_q + chord * math.sqrt(kx * kx + ky * ky)
         rc = rho / res_m + EPS_CELLS
         u = ((mcx + px) - mox) / res_m
         v = ((mcy + py) - moy) / res_m
@@ -145,22 +176,18 @@ def region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sa
         cr0, cr1 = max(r0, 0), min(r1, mh - 1)
         cc0, cc1 = max(c0, 0), min(c1, mw - 1)
         if _sat(occ_sat, int(cr0), int(cr1), int(cc0), int(cc1)) > 0:
-            agr += cnt * w_agr
+            agr += w_hi
             continue
         if not inside or max(abs(px), abs(py)) + rho >= half * (1.0 - 1e-12) - 1e-9:
             continue
         area = (r1 - r0 + 1) * (c1 - c0 + 1)
         if _sat(free_sat, int(r0), int(r1), int(c0), int(c1)) != area:
             continue
-        # surely free at every lookup: dis for each translation that reads the block's cells
-        if plain:
-            if rr >= ar0 and rr + size - 1 <= ar1 and cc >= ac0 and cc + size - 1 <= ac1:
-                dis += cnt
-        elif level == 0:
-            ri = rr - lo_r
-            ci = cc - lo_c
-            if p1r[b1 + 1, ri] - p1r[b0, ri] == nb and p1c[a1 + 1, ci] - p1c[a0, ci] == na:
-                dis += cnt
+        # surely free at every lookup: dis for each translation, which reads each of the cells at least once
+        if exact_w:
+            dis += w_lo
+        elif blk[q, 4] and rr >= ar0 and rr + size - 1 <= ar1 and cc >= ac0 and cc + size - 1 <= ac1:
+            dis += cnt
     return agr, dis
 
 
@@ -213,9 +240,9 @@ def _before(v, p, s, iv, ip, is_):
 
 @njit(cache=True, nogil=True)
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
-                     axes_r, axes_c, p1r, p1c, blk, lvl_start, mstates, occ_sat, free_sat,
+                     axes_r, axes_c, blk, lvl_start, wr0, wc0, mstates, occ_sat, free_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
-                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env):
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
     ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0).
@@ -314,7 +341,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             continue
         # split: the angles while the rotation moves the ROI's corners more than the box, else the box
         span = (angles[hi] - angles[lo]) / 2.0
-        rot_cells = 2.0 * math.sin(math.radians(span) / 2.0) * rmax / res
+        rot_cells = 2.0 * math.sin(math.radians(span) / 2.0) * rmax / res * ROT_WEIGHT
         box_cells = max(a1 - a0, b1 - b0) / 2.0
         nc = 0
         if hi > lo and (rot_cells >= box_cells or (a0 == a1 and b0 == b1)):
@@ -345,9 +372,11 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             level = 0
             while level + 1 < LEVELS and (1 << (level + 1)) <= blur:
                 level += 1
-            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, p1r, p1c, blk, lvl_start, occ_sat, free_sat,
+            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, occ_sat, free_sat,
                                           mh, mw, th_mid, half_rad, box, level)
             n_bounds += 1
+            hist[level + (LEVELS if clo == chi else 0)] += 1
+            hist[2 * LEVELS] += lvl_start[level + 1] - lvl_start[level]
             sx_lo = 1 << 40
             sx_hi = -1
             if code == NCC or code == BIRK_CARPIN:

@@ -72,10 +72,12 @@ def _axis(raw: np.ndarray, size: int):
         start[t] = np.searchsorted(raw[t], cells, side="left")
         end[t] = np.searchsorted(raw[t], cells, side="right")
     reads = end - start
-    p1 = np.zeros((side + 1, span), np.int64)
-    p1[1:] = np.cumsum(reads >= 1, axis=0)
-    mult = int(reads.max())
-    return (lo, hi, base, dev, mult, start, end, p1)
+    # per cell: the most lattice lines reading it at any translation, and whether a translation whose
+    # ROI spans it (with dev to spare) skips it (centers on cell borders: float ties)
+    wmax = reads.max(axis=0)
+    inner = (cells[None, :] >= base + t_idx + dev) & (cells[None, :] <= base + t_idx + n - 1 - dev)
+    skipped = ((reads == 0) & inner).any(axis=0)
+    return (lo, hi, base, dev, int(wmax.max()), start, end, wmax.astype(np.int64), skipped)
 
 
 def _sat(mask: np.ndarray) -> np.ndarray:
@@ -103,9 +105,9 @@ class Prepared:
         self.empty_ref = ax_c is None or ax_r is None
         if self.empty_ref:  # no translation reads any reference cell: a dummy axis, no occupied cells
             ax_c = ax_r = (0, 0, 0, 0, 1, np.zeros((side, 1), np.int64), np.zeros((side, 1), np.int64),
-                           np.zeros((side + 1, 1), np.int64))
-        clo, chi, cbase, cdev, cmult, self.jlo, self.jhi, self.p1c = ax_c
-        rlo, rhi, rbase, rdev, rmult, self.ilo, self.ihi, self.p1r = ax_r
+                           np.ones(1, np.int64), np.zeros(1, np.bool_))
+        clo, chi, cbase, cdev, cmult, self.jlo, self.jhi, self._wc, self._skip_c = ax_c
+        rlo, rhi, rbase, rdev, rmult, self.ilo, self.ihi, self._wr, self._skip_r = ax_r
         self.axes_c = np.array([cbase, cdev, cmult, clo], np.int64)
         self.axes_r = np.array([rbase, rdev, rmult, rlo], np.int64)
         if self.empty_ref:
@@ -114,6 +116,10 @@ class Prepared:
             qr, qc = np.nonzero(self.ref[rlo:rhi + 1, clo:chi + 1] == OCCUPIED_S)
             self.qr, self.qc = qr.astype(np.int64) + rlo, qc.astype(np.int64) + clo
         self.blk, self.lvl_start = self._blocks()
+        # per translation, how many lattice rows (columns) read each occupied cell: exact weights of small
+        # boxes when the ROI is not a plain block (Lemma 3)
+        self.wr0 = np.ascontiguousarray((self.ihi - self.ilo)[:, self.qr - rlo].astype(np.int8))
+        self.wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
         ms = np.ascontiguousarray(mov.states)
         self.mstates = ms
         self.occ_sat = _sat(ms == OCCUPIED_S)
@@ -125,17 +131,34 @@ class Prepared:
                                float(problem.center_moving[0]), float(problem.center_moving[1]), half])
 
     def _blocks(self):
-        """(row, col, count) of the occupied cells pooled in blocks of 2^l cells, levels 0..LEVELS−1."""
+        """The occupied cells pooled in blocks of 2^l cells, levels 0..LEVELS−1: per block its first row
+        and column, its count, the count weighted by the most lattice points reading one of its cells
+        (Lemma 3: a bound on agr̃), and 1 when no translation skips one of its rows or columns."""
         parts, starts = [], [0]
+        rlo, clo = int(self.axes_r[3]), int(self.axes_c[3])
         for level in range(LEVELS):
             s = 1 << level
             if self.qr.size:
                 br, bc = self.qr // s, self.qc // s
                 key = br * (1 << 31) + bc
-                uk, cnt = np.unique(key, return_counts=True)
-                part = np.stack([(uk >> 31) * s, (uk & ((1 << 31) - 1)) * s, cnt], axis=1)
+                uk, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+                nb = uk.size
+                wr = np.zeros(nb, np.int64)
+                wc = np.zeros(nb, np.int64)
+                np.maximum.at(wr, inv, self._wr[self.qr - rlo])
+                np.maximum.at(wc, inv, self._wc[self.qc - clo])
+                # rows / columns of the whole block (not only its occupied cells) must never be skipped
+                bad = np.zeros(nb, np.bool_)
+                r0, c0 = (uk >> 31) * s, (uk & ((1 << 31) - 1)) * s
+                for d in range(s):
+                    rr, cc = r0 + d - rlo, c0 + d - clo
+                    ok_r = (rr >= 0) & (rr < self._skip_r.size)
+                    ok_c = (cc >= 0) & (cc < self._skip_c.size)
+                    bad |= ok_r & self._skip_r[np.clip(rr, 0, self._skip_r.size - 1)]
+                    bad |= ok_c & self._skip_c[np.clip(cc, 0, self._skip_c.size - 1)]
+                part = np.stack([r0, c0, cnt, cnt * wr * wc, (~bad).astype(np.int64)], axis=1)
             else:
-                part = np.zeros((0, 3), np.int64)
+                part = np.zeros((0, 5), np.int64)
             parts.append(part.astype(np.int64))
             starts.append(starts[-1] + part.shape[0])
         return np.ascontiguousarray(np.concatenate(parts)), np.array(starts, np.int64)

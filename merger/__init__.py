@@ -3,7 +3,7 @@
 Implements section 3.3 of the thesis ("Merging of Occupancy Grid Maps with Common Center"): exhaustive
 rotation search maximizing the modified similarity index ω̃ on a region of interest around the center,
 verification on the whole maps, three (in general N(N−1)/2) merge orders and the choice of the best
-verified one. Pure numpy/OpenCV: no I/O in the algorithms (file formats live in :mod:`merger.mapio`).
+verified one. numpy, OpenCV and numba kernels: no I/O in the algorithms (file formats live in :mod:`merger.mapio`).
 """
 
 from __future__ import annotations
@@ -37,9 +37,9 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
         (``center_moving`` defaults to ``center_ref``).
     roi_m : side of the square region of interest around the center, metres.
     measure : "similarity" (ω̃, eq. 3.11), "birk_carpin" (ω, eq. 2.21) or "ncc".
-    method : "fast" (default: the reference's answer, computed fast — :mod:`merger.fast`,
-        :mod:`merger.window`), "reference" (the exhaustive search: the thesis's 380 rotations, times
-        every one-cell translation of the window) or another registered method.
+    method : "fast" (default: the reference's answer by branch and bound — :mod:`merger.search`),
+        "reference" (the exhaustive search, compiled: the thesis's 380 rotations, times every one-cell
+        translation of the window), "spec" (the same in plain numpy) or another registered method.
     window_m : the centers are trusted to ±window_m metres: the search covers every translation t of
         at most window_m on each axis (one-cell steps) jointly with the rotation. 0 is the thesis's
         rotation-only search; at most roi_m / 4.

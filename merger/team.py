@@ -53,9 +53,9 @@ class MergeParams:
         search finds more spurious peaks: on the point-symmetric scene 1, a half turn plus a translation
         of ~0.35 m passes whole-map verification (ν ≈ 0.7) beside the correct order (ν ≈ 0.78).
     window_m : translation window, metres: every pair is searched over rotations and translations
-        within ±window_m on each axis (:mod:`merger.window`), for centers known only roughly; 0 is the
+        within ±window_m on each axis (:mod:`merger.search`), for centers known only roughly; 0 is the
         thesis's rotation-only search. At most a quarter of ``roi_m``.
-    refine : refine θ and t below the search grid (:func:`merger.window.refine_alignment`); off
+    refine : refine θ and t below the search grid (:func:`merger.search.refine_alignment`); off
         reproduces the thesis's 0.1° grid answer exactly.
     combine_orders : the chosen placement is the mean of the accepted orders that agree with the
         highest-Σν order within 10° and 0.2 m on every map, when that mean passes whole-map verification
@@ -412,7 +412,7 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
 
 def _beyond(order: OrderResult) -> str:
     """Why the chosen order is refused because a search of it found a better alignment outside the
-    translation window ("" if none did; see :func:`merger.window.beyond_window`)."""
+    translation window ("" if none did; see :func:`merger.search.beyond_window`)."""
     for name, al in order.steps:
         if al.window_m > 0 and al.beyond is not None:
             th, t, v = al.beyond

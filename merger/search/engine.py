@@ -11,8 +11,9 @@ angle; then 0.1° over θc ± 1° at that translation, the first maximum. K = 0 
   (:func:`merger.search.kernels.exact_counts`): the same floats, at full size.
 * :func:`fast_search` — :func:`merger.search.kernels.branch_and_bound` over (sector, box) regions with
   the reference's order as the key (Lemma 5): exactly the reference's answer. Its profile is an upper
-  envelope of the reference's (exact where evaluated, never above the best coarse value); its runner-up
-  and the guard beyond the window are computed exactly, on first access, by the same branch and bound.
+  envelope of the reference's (exact where evaluated, never above the best coarse value) and so is its
+  runner-up (read off that profile); :func:`exact_runner_up` computes the runner-up exactly and the guard
+  beyond the window is exact (on first access), both by the same branch and bound.
 """
 
 from __future__ import annotations
@@ -181,14 +182,23 @@ def fast_search(problem) -> Alignment:
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
     value, counts = s.exact(float(angles[kf]), *tc)
+    # the fine scores: exact wherever a bound reaches the best (a plateau of equal scores is exact),
+    # elsewhere bounds below it (the sub-cell refinement reads only the plateau)
+    fine_vals = fine_env.copy()
+    fine_vals[kf] = value
+    for x in np.flatnonzero(fine_env >= value):
+        if x != kf:
+            fine_vals[x] = s.values(float(angles[x]), [tc])[0]
     theta = wrap_deg(float(angles[kf]))
     profile = np.minimum(env, max(float(inc[0]), 0.0)) if problem.measure == "ncc" else env
     best_value = float(inc[0])
+    # the runner-up from the envelope: an upper bound of the reference's (never above the best coarse
+    # value); exact_runner_up computes it exactly, at the cost of a search where few regions can be dropped
     return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, profile,
-                     lambda: exact_runner_up(problem, theta), window_m=problem.window_m,
-                     translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_env),
+                     runner_up(profile, theta), window_m=problem.window_m,
+                     translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_vals),
                      _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)),
-                     evidence={"profile": "upper_envelope", "runner_up": "exact"})
+                     evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
 def exact_runner_up(problem, theta_deg: float) -> tuple[float, float]:

@@ -105,12 +105,11 @@ class Alignment:
     counts : agr̃, dis and free/free at ``theta_deg`` on the ROI.
     profile : coarse scores at 0°, 1°, ..., 359°.
     runner_up_deg, runner_up_score : best coarse angle at least 10° away from ``theta_deg``.
-    evidence : how exact the profile and the runner-up are — ``{"profile": "exact" | "upper_envelope" |
-        "approximate", "runner_up": "exact" | "approximate"}``: the reference searches give both exactly;
-        rotation-only ``fast`` an exact runner-up and a profile that is an upper envelope (exact where
-        evaluated, a true upper bound elsewhere); windowed ``fast`` the same profile and an approximate
-        runner-up (:func:`merger.window.exact_window_runner_up` computes it exactly); ``climb``
-        approximate both. θ, t, the score and the counts are exact for every method but ``climb``.
+    evidence : how exact the profile and the runner-up are — ``{"profile": "exact" | "upper_envelope",
+        "runner_up": "exact" | "upper_envelope"}``: the reference gives both exactly; ``fast`` a profile
+        that is an upper envelope (exact where evaluated, a true upper bound elsewhere, never above the
+        best coarse value) and the runner-up read off it (at least the reference's runner-up score,
+        never above the best); :func:`merger.search.exact_runner_up` computes the exact one.
 
     A search may hand over the counts and the runner-up as callables (arguments ``_counts`` and
     ``_runner_up``), each called once, on first access: a merge cycle decides on θ and the score
@@ -172,7 +171,7 @@ class Alignment:
     @property
     def beyond(self) -> tuple[float, tuple[float, float], float] | None:
         """A better alignment found outside the translation window, ``(θ°, (tx, ty) m, coarse score)``,
-        or None (see :func:`merger.window.beyond_window`); computed on first access when deferred."""
+        or None (see :func:`merger.search.beyond_window`); computed on first access when deferred."""
         return self._resolve("_beyond", lambda b: None if b is None else
                              (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2])))
 

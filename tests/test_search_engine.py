@@ -1,0 +1,168 @@
+"""merger.search: the compiled lattice equals its numpy specification; the compiled exhaustive reference
+equals the numpy definition (:func:`merger.search.spec_search`); the fast branch and bound returns the
+reference's grid answer (θ, t, score, counts), its exact runner-up and guard, on adversarial problems:
+random ternary grids, centers on cell centres and corners (ROIs that are not plain blocks), walls on
+the window's edge, a map against a rotated copy of itself shifted by one cell, near-empty maps,
+different resolutions; rotation-only and windowed; all three measures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+from merger.search import (
+    RotationProblem,
+    beyond_window,
+    clear_all,
+    exact_runner_up,
+    fast_search,
+    reference_beyond,
+    reference_search,
+    spec_search,
+)
+from merger.search.kernels import fill_moving
+from merger.search.lattice import moving_states_numpy, rotation_entries
+from merger.synthetic import window_case
+
+MEASURES = ("similarity", "birk_carpin", "ncc")
+
+
+def _key(al):
+    c = al.counts
+    return (al.theta_deg, al.cells, al.score, c.agree, c.disagree)
+
+
+def _random_grid(rng, side: int, res: float = 0.05, p=None) -> OccupancyGrid:
+    p = rng.dirichlet([1, 1, 1]) if p is None else p
+    st_ = rng.choice(3, size=(side, side), p=p).astype(np.uint8)
+    org = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))
+    return OccupancyGrid(st_, res, org)
+
+
+def _center(rng, g: OccupancyGrid, mode: str):
+    """A point inside ``g``: anywhere, on a cell centre or on a cell corner."""
+    col = int(rng.integers(g.width // 4, 3 * g.width // 4))
+    row = int(rng.integers(g.height // 4, 3 * g.height // 4))
+    if mode == "centre":
+        return (g.origin[0] + (col + 0.5) * g.resolution, g.origin[1] + (row + 0.5) * g.resolution)
+    if mode == "corner":
+        return (g.origin[0] + col * g.resolution, g.origin[1] + row * g.resolution)
+    return (g.origin[0] + float(rng.uniform(col, col + 1)) * g.resolution,
+            g.origin[1] + float(rng.uniform(row, row + 1)) * g.resolution)
+
+
+def adversarial_problem(seed: int, measure: str, window: bool) -> RotationProblem:
+    """One of several generated problem kinds (see the module documentation), small enough for the spec."""
+    rng = np.random.default_rng(seed)
+    kind = ("noise", "rotated_copy", "edge_wall", "near_empty", "two_res")[seed % 5]
+    mode = ("any", "centre", "corner")[(seed // 5) % 3]
+    side = int(rng.integers(16, 40))
+    g = _random_grid(rng, side)
+    h = _random_grid(rng, side)
+    if kind == "rotated_copy":  # a map against its own rotation, shifted by one cell: near-ties, plateaus
+        k = int(rng.integers(0, 4))
+        h = OccupancyGrid(np.roll(np.rot90(g.states, k), 1, axis=int(rng.integers(0, 2))), g.resolution, g.origin)
+    elif kind == "edge_wall":  # free maps with walls where the window's edge puts them
+        st_ = np.full((side, side), FREE_S, np.uint8)
+        st_[:, side // 2 + 3] = OCCUPIED_S
+        st_[side // 2 - 2, :] = OCCUPIED_S
+        g = OccupancyGrid(st_, 0.05, g.origin)
+        h = OccupancyGrid(np.rot90(st_).copy(), 0.05, h.origin)
+    elif kind == "near_empty":
+        st_ = np.zeros((side, side), np.uint8)
+        st_[rng.random(st_.shape) < 0.3] = FREE_S
+        for _ in range(int(rng.integers(0, 4))):
+            st_[rng.integers(0, side), rng.integers(0, side)] = OCCUPIED_S
+        h = OccupancyGrid(st_, 0.05, h.origin)
+    elif kind == "two_res":
+        h = _random_grid(rng, side // 2 + 4, res=0.1)
+    cr, cm = _center(rng, g, mode), _center(rng, h, mode)
+    roi = float(rng.choice([0.6, 0.75, 0.8, 1.0]))
+    w = float(rng.choice([0.05, 0.1, 0.15])) if window else 0.0
+    return RotationProblem(g, h, cr, cm, roi, measure, w)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("theta", [0.0, 1.0, 45.0, 90.0, 179.3, 270.0, -0.3])
+def test_compiled_moving_states_equal_the_numpy_specification(seed, theta):
+    rng = np.random.default_rng(seed)
+    g = _random_grid(rng, 30, res=0.05 if seed % 2 else 0.1)
+    c = _center(rng, g, ("any", "centre", "corner")[seed % 3])
+    n = 24 + seed
+    want = moving_states_numpy(g, theta, c, n, 0.05)
+    dense = np.empty(n * n, np.uint8)
+    pocc = np.empty(n * n, np.int32)
+    no, nf = fill_moving(g.states, g.resolution, g.origin[0], g.origin[1], c[0], c[1], n, 0.05,
+                         *rotation_entries(theta), dense, pocc)
+    np.testing.assert_array_equal(dense.reshape(n, n), want)
+    assert (no, nf) == (int((want == 2).sum()), int((want == 1).sum()))
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), window=st.booleans())
+def test_reference_equals_spec_and_fast_equals_reference(seed, measure, window):
+    p = adversarial_problem(seed, measure, window)
+    spec, ref, fast = spec_search(p), reference_search(p), fast_search(p)
+    assert _key(ref) == _key(spec)
+    np.testing.assert_array_equal(ref.profile, spec.profile)
+    assert ref.runner_up == spec.runner_up or np.isnan(spec.runner_up[0])
+    assert _key(fast) == _key(ref)
+    assert fast.counts == ref.counts
+    # the envelope: above the reference's profile, never above the best coarse value; the runner-up exact
+    assert np.all(fast.profile >= ref.profile)
+    assert np.all(fast.profile <= ref.profile.max())
+    ru = exact_runner_up(p, fast.theta_deg)
+    assert ru == ref.runner_up or (np.isnan(ru[0]) and np.isnan(ref.runner_up[0]))
+    if not np.isnan(ru[0]):
+        assert ref.runner_up[1] <= fast.runner_up[1] <= ref.profile.max()
+
+
+@pytest.mark.parametrize("kind", ["views", "symmetric", "sparse", "identical", "noise"])
+@pytest.mark.parametrize("seed", range(3))
+def test_fast_equals_the_compiled_reference_at_full_size(kind, seed):
+    """ROI 4–6 m, W 0.25 m (the reference is compiled: exactness at real sizes, not only small ROIs)."""
+    c = window_case(seed, kind, roi_m=(4.0, 6.0), window_m=(0.25, 0.25))
+    for measure in MEASURES:
+        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, measure, c.window_m)
+        ref, fast = reference_search(p), fast_search(p)
+        assert _key(fast) == _key(ref), (kind, seed, measure)
+        assert exact_runner_up(p, fast.theta_deg) == ref.runner_up
+        assert ref.runner_up[1] <= fast.runner_up[1] <= ref.profile.max()
+
+
+@pytest.mark.parametrize("mode", ["centre", "corner"])
+def test_centers_on_cell_borders_at_full_size(mode):
+    c = window_case(1, "views", roi_m=(6.0, 6.0), window_m=(0.25, 0.25))
+    g = c.ref
+    cr = np.array(c.center_ref)
+    cells = np.floor((cr - g.origin) / g.resolution)
+    cr = g.origin + (cells + (0.5 if mode == "centre" else 0.0)) * g.resolution
+    p = RotationProblem(g, c.moving, tuple(cr), c.center_moving, 6.0, "similarity", 0.25)
+    assert _key(fast_search(p)) == _key(reference_search(p))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_guard_beyond_the_window_equals_the_exhaustive_one(seed):
+    c = window_case(seed, "views", roi_m=(4.0, 4.0), window_m=(0.15, 0.15), error_frac=2.5)
+    p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, 4.0, "similarity", 0.15)
+    ref = reference_search(p)
+    th, t = int(round(ref.theta_grid_deg)) % 360, ref.cells
+    best = float(ref.profile.max())
+    assert beyond_window(p, best, (th, t)) == reference_beyond(p, best, (th, t))
+
+
+def test_an_roi_without_occupied_cells_scores_zero_everywhere_and_the_profile_is_flat():
+    g = OccupancyGrid(np.full((40, 40), FREE_S, np.uint8), 0.05, (-1.0, -1.0))
+    p = RotationProblem(g, g, (0.0, 0.0), (0.0, 0.0), 1.0, "similarity", 0.1)
+    fast, ref = fast_search(p), reference_search(p)
+    assert _key(fast) == _key(ref) and fast.score == 0.0 and fast.counts.support == 0
+
+
+def test_clear_all_changes_no_answer():
+    p = adversarial_problem(3, "similarity", True)
+    a = fast_search(p)
+    clear_all()
+    assert _key(fast_search(p)) == _key(a)

@@ -63,22 +63,21 @@ class MemoryProbe(Observer):
         if t + 1e-9 < self._next:
             return
         self._next += self.every_s
-        from merger import polar, window
+        from merger.search import caches
 
         cpu = time.process_time()
         s = {"t": t, "rss_mb": rss_mb(), "wall_s": time.perf_counter() - self._t0, "span_cpu_s": cpu - self._cpu,
              "cycles": len(self._cycles),
              "cycle_ms": statistics.median(self._cycles) if self._cycles else None,
-             "spectra": len(polar._CACHE), "spectra_mb": polar._CACHE.nbytes / 2**20,
-             "rotated_mb": window._ROT_BYTES[0] / 2**20}
+             "searchers": len(caches._SEARCHERS)}
         self.samples.append(s)
         self._cycles = []
         self._cpu = cpu
         if self.verbose:
             ms = "-" if s["cycle_ms"] is None else f"{s['cycle_ms']:.1f}"
             print(f"  t {t:6.0f} s  wall {s['wall_s']:6.1f} s  RSS {s['rss_mb']:6.1f} MB  cycles {s['cycles']:4d}"
-                  f"  median {ms:>6} ms  CPU {s['span_cpu_s']:5.1f} s  spectra {s['spectra']:3d} ({s['spectra_mb']:.1f} MB)"
-                  f"  rotated ROIs {s['rotated_mb']:.1f} MB", flush=True)
+                  f"  median {ms:>6} ms  CPU {s['span_cpu_s']:5.1f} s  searchers {s['searchers']:2d}"
+                  , flush=True)
 
     def at(self, t: float) -> dict:
         """The first sample at or after ``t``."""

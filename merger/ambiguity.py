@@ -28,6 +28,7 @@ from .search import (
     RotationProblem,
     angle_diff_deg,
     beyond_window,
+    exact_runner_up,
     fine_angles,
     reference_beyond,
     refine_alignment,
@@ -121,7 +122,10 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
     :class:`merger.search.engine.Searcher` of ``problem`` (the search's own by default)."""
     if margin <= 0:
         return None
-    ru_deg, ru_score = al.runner_up
+    if al.evidence.get("runner_up") == "exact":
+        ru_deg, ru_score = al.runner_up
+    else:  # the exact runner-up, looked for only where it could be a rival (cheap: the rest is bounded out)
+        ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK)
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
     ev = ev if ev is not None else searcher_for(problem)

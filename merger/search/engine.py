@@ -201,13 +201,18 @@ def fast_search(problem) -> Alignment:
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
-def exact_runner_up(problem, theta_deg: float) -> tuple[float, float]:
+def exact_runner_up(problem, theta_deg: float, floor: float | None = None) -> tuple[float, float]:
     """The reference's runner-up exactly: over the coarse angles at least 10° from ``theta_deg``, the
-    first maximum (smallest angle) of the best value over the window (NaNs when no angle is that far)."""
+    first maximum (smallest angle) of the best value over the window (NaNs when no angle is that far).
+    With ``floor``, only a runner-up scoring at least ``floor`` is looked for (NaNs when there is none):
+    regions bounded below it are dropped at once, which keeps the search cheap."""
     far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
     if not far.any():
         return float("nan"), float("nan")
-    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far)
+    inc = None if floor is None else np.array([np.nextafter(floor, -np.inf), -1, -1, -1, 0, 0, 0, 0, 0])
+    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far, inc=inc)
+    if inc[3] < 0:
+        return float("nan"), float("nan")
     return float(inc[3]), float(inc[0])
 
 

@@ -102,8 +102,8 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
     ``lvl_start[l]:lvl_start[l+1]``; see :meth:`merger.search.prepared.Prepared._blocks`)."""
     n = int(geo[0])
     res, res_m, mox, moy, mcx, mcy, half = geo[1], geo[2], geo[3], geo[4], geo[5], geo[6], geo[7]
-    base_r, dev_r, mult_r, lo_r = axes_r[0], axes_r[1], axes_r[2], axes_r[3]
-    base_c, dev_c, mult_c, lo_c = axes_c[0], axes_c[1], axes_c[2], axes_c[3]
+    base_r, dev_r, lo_r = axes_r[0], axes_r[1], axes_r[3]
+    base_c, dev_c, lo_c = axes_c[0], axes_c[1], axes_c[3]
     a0, a1, b0, b1 = box[0], box[1], box[2], box[3]
     m = (n - 1) / 2.0
     t = math.radians(-th_mid)

@@ -40,6 +40,7 @@ from .verify import Verification
 RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.AMBIGUOUS_M)
 PREFILTER_SLACK = 0.05  # the profile's runner-up score can be approximate (the fast search's polar
 # stage): a pair is examined exactly when that score is within margin + this of the best
+RIVAL_BUDGET = 20000  # regions the runner-up search may bound (deterministic: a count, not a time)
 RIVAL_SPAN_DEG = 2  # the exact runner-up is the best coarse angle within ± this of the profile's
 
 VERDICTS = ("best", "runner_up", "unresolved")
@@ -124,8 +125,10 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
         return None
     if al.evidence.get("runner_up") == "exact":
         ru_deg, ru_score = al.runner_up
-    else:  # the exact runner-up, looked for only where it could be a rival (cheap: the rest is bounded out)
-        ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK)
+    else:  # the runner-up, looked for only where it could be a rival; exact unless the rivals are so many
+        # and so close that RIVAL_BUDGET regions do not settle them (then the best found: a real placement)
+        ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK,
+                                           budget=RIVAL_BUDGET)
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
     ev = ev if ev is not None else searcher_for(problem)

@@ -90,12 +90,13 @@ class Searcher:
         return self._asum
 
     def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0):
-        """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope)."""
+            sector0: int = SECTOR0, budget: int = 0):
+        """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
+        ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it."""
         with self.lock:
-            return self._run(angles, mode, amask, tmask, inc, excl, sector0)
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget)
 
-    def _run(self, angles, mode, amask, tmask, inc, excl, sector0):
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget):
         p = self.p
         angles = np.asarray(angles, np.float64)
         rot = self._use(angles)
@@ -105,10 +106,11 @@ class Searcher:
         excl_a, excl_t = (np.zeros(angles.size, np.bool_), np.zeros(side * side, np.bool_)) if excl is None else excl
         inc = np.array([-np.inf, 0, 0, -1, 0, 0, 0, 0, 0], np.float64) if inc is None else inc
         env = np.full(angles.size, -np.inf)
-        ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0], np.int64)
-        nb, ne = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
-                                  p.axes_r, p.axes_c, p.blk, p.lvl_start, p.wr0, p.wc0, p.mstates, p.occ_sat,
-                                  p.free_sat, angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
+        ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0, budget],
+                         np.int64)
+        nb, ne, self.complete = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
+                                  p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
+                                  angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env, self.hist)
         self.stats["bounds"] += int(nb)
@@ -201,16 +203,17 @@ def fast_search(problem) -> Alignment:
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
-def exact_runner_up(problem, theta_deg: float, floor: float | None = None) -> tuple[float, float]:
+def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budget: int = 0) -> tuple[float, float]:
     """The reference's runner-up exactly: over the coarse angles at least 10° from ``theta_deg``, the
     first maximum (smallest angle) of the best value over the window (NaNs when no angle is that far).
     With ``floor``, only a runner-up scoring at least ``floor`` is looked for (NaNs when there is none):
-    regions bounded below it are dropped at once, which keeps the search cheap."""
+    regions bounded below it are dropped at once. With a ``budget`` of bounded regions the answer is
+    the best exact value found within it (exact when the search completed; a real placement always)."""
     far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
     if not far.any():
         return float("nan"), float("nan")
     inc = None if floor is None else np.array([np.nextafter(floor, -np.inf), -1, -1, -1, 0, 0, 0, 0, 0])
-    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far, inc=inc)
+    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far, inc=inc, budget=budget)
     if inc[3] < 0:
         return float("nan"), float("nan")
     return float(inc[3]), float(inc[0])

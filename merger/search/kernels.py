@@ -89,7 +89,7 @@ def _sat(t, r0, r1, c0, c1):
 
 
 @njit(cache=True, nogil=True)
-def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, occ_sat, free_sat, mh, mw,
+def region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat, mh, mw,
                  th_mid, half_rad, box, level):
     """(agr_hi, dis_lo) over the angles within ``half_rad`` of ``th_mid`` (degrees) and the box
     ``box`` = (a0, a1, b0, b1) of translation indices (Lemma 3).
@@ -97,7 +97,8 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
     geo = (n, res, res_m, mox, moy, mcx, mcy, half): the lattice and the moving map's geometry.
     axes_r / axes_c = (base, dev, mult, lo) per axis: the reference row (column) read by lattice row i at
     translation index b is base + b + i ± dev, at most ``mult`` lattice rows read one cell, ``lo`` is
-    the first reference row of the tables. blk: (row, col, count, weighted count, never skipped) of the
+    the first reference row of the tables. cls_sat: summed-area table of the moving map's
+    (occupied << 32 | free) indicators. blk: (row, col, count, weighted count, never skipped) of the
     reference's occupied cells pooled in blocks (level l: blocks of 2^l cells, rows
     ``lvl_start[l]:lvl_start[l+1]``; see :meth:`merger.search.prepared.Prepared._blocks`)."""
     n = int(geo[0])
@@ -108,6 +109,11 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
     m = (n - 1) / 2.0
     t = math.radians(-th_mid)
     co, si = math.cos(t), math.sin(t)
+    inv = 1.0 / res_m  # lookups in moving cells: u = u0 + R(−θm)k / res_m (the margin covers the rounding)
+    u0 = (mcx - mox) * inv
+    v0 = (mcy - moy) * inv
+    cxo = co * inv
+    sxo = si * inv
     chord = 2.0 * math.sin(half_rad / 2.0) if half_rad > 0 else 0.0
     hl = ((1 << level) - 1) / 2.0
     ha = (a1 - a0) / 2.0 + dev_c + hl
@@ -115,6 +121,9 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
     rho_t = res * math.sqrt(ha * ha + hb * hb)
     ac = (a0 + a1) / 2.0
     bc = (b0 + b1) / 2.0
+    acr = ac * res  # the box center's shift of every block's lattice position
+    bcr = bc * res
+    shift = math.sqrt(acr * acr + bcr * bcr)
     size = 1 << level
     # rows (columns) inside every ROI of the box: base + b1 + dev .. base + b0 + n − 1 − dev (Lemma 1)
     ar0, ar1 = base_r + b1 + dev_r, base_r + b0 + n - 1 - dev_r
@@ -157,15 +166,17 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
             hj = (j1 - j0) / 2.0
             hi_ = (i1 - i0) / 2.0
             rho_q = res * math.sqrt(hj * hj + hi_ * hi_)
+            knorm = math.sqrt(kx * kx + ky * ky)
         else:
-            kx = ((cc + hl - base_c - ac) - m) * res  # the block's center on the lattice, box center
-            ky = ((rr + hl - base_r - bc) - m) * res
-        px = co * kx - si * ky
-        py = si * kx + co * ky
-        rho = rho_q + chord * math.sqrt(kx * kx + ky * ky)
-        rc = rho / res_m + EPS_CELLS
-        u = ((mcx + px) - mox) / res_m
-        v = ((mcy + py) - moy) / res_m
+            kx = blkf[q, 0] - acr  # the block's center on the lattice at the box center
+            ky = blkf[q, 1] - bcr
+            knorm = blkf[q, 2] + shift  # |k| ≤ |k at translation 0| + |shift|
+        rho = rho_q
+        if chord > 0:
+            rho += chord * knorm
+        rc = rho * inv + EPS_CELLS
+        u = u0 + (cxo * kx - sxo * ky)
+        v = v0 + (sxo * kx + cxo * ky)
         c0 = math.floor(u - rc)
         c1 = math.floor(u + rc)
         r0 = math.floor(v - rc)
@@ -175,13 +186,18 @@ def region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, j
         inside = c0 >= 0 and r0 >= 0 and c1 < mw and r1 < mh
         cr0, cr1 = max(r0, 0), min(r1, mh - 1)
         cc0, cc1 = max(c0, 0), min(c1, mw - 1)
-        if _sat(occ_sat, int(cr0), int(cr1), int(cc0), int(cc1)) > 0:
+        both = _sat(cls_sat, int(cr0), int(cr1), int(cc0), int(cc1))  # occupied << 32 | free
+        if (both >> 32) > 0:
             agr += w_hi
             continue
-        if not inside or max(abs(px), abs(py)) + rho >= half * (1.0 - 1e-12) - 1e-9:
+        if not inside:
             continue
         area = (r1 - r0 + 1) * (c1 - c0 + 1)
-        if _sat(free_sat, int(r0), int(r1), int(c0), int(c1)) != area:
+        if (both & 0xFFFFFFFF) != area:  # inside: the clipped square is the square
+            continue
+        px = co * kx - si * ky
+        py = si * kx + co * ky
+        if max(abs(px), abs(py)) + rho >= half * (1.0 - 1e-12) - 1e-9:
             continue
         # surely free at every lookup: dis for each translation, which reads each of the cells at least once
         if exact_w:
@@ -240,21 +256,23 @@ def _before(v, p, s, iv, ip, is_):
 
 @njit(cache=True, nogil=True)
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
-                     axes_r, axes_c, blk, lvl_start, wr0, wc0, mstates, occ_sat, free_sat,
+                     axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
                      slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
-    ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0).
+    ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget).
     angles/rot: the angles searched (degrees) and their R(−θ) entries; amask/tmask: the angles and
     translations allowed; rank: the tie rank of each translation index b·(2k+1) + a; tsum/asum: the
     measure's count tables per translation / per angle; excl_a × excl_t: elements excluded.
     mode 0 orders elements by (value, −rank, −angle), mode 1 by (value, −angle, −rank).
     inc = [value, p, s, angle, a, b, agr, dis, ff]: the incumbent, updated in place; env: per angle,
     the largest bound or exact value seen (an upper envelope of the best value over translations).
-    Returns (regions bounded, exact evaluations)."""
+    ctx_i[6]: a budget of regions bounded (0: none). Returns (regions bounded, exact evaluations,
+    whether the search completed: the incumbent is then the answer)."""
     res, res_m, mox, moy, mcx, mcy, half = ctx_f[0], ctx_f[1], ctx_f[2], ctx_f[3], ctx_f[4], ctx_f[5], ctx_f[6]
     n, k, code, mode, need_ff, sector0 = ctx_i[0], ctx_i[1], ctx_i[2], ctx_i[3], ctx_i[4], ctx_i[5]
+    budget = ctx_i[6]  # the most regions bounded (0: no limit); beyond it the incumbent is returned as is
     side = 2 * k + 1
     n_ang = angles.size
     mh, mw = mstates.shape
@@ -288,7 +306,11 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     free_ids = np.empty(cap, np.int64)
     n_free_ids = 0
     child = np.empty((4, 6), np.int64)
+    complete = True
     while size > 0:
+        if budget > 0 and n_bounds >= budget:
+            complete = False
+            break
         bval, nid, size = _heap_pop(hv, hi_, size)
         lo, hi, a0, a1, b0, b1 = nodes[nid, 0], nodes[nid, 1], nodes[nid, 2], nodes[nid, 3], nodes[nid, 4], nodes[nid, 5]
         free_ids[n_free_ids] = nid
@@ -372,7 +394,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             level = 0
             while level + 1 < LEVELS and (1 << (level + 1)) <= blur:
                 level += 1
-            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, occ_sat, free_sat,
+            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
                                           mh, mw, th_mid, half_rad, box, level)
             n_bounds += 1
             hist[level + (LEVELS if clo == chi else 0)] += 1
@@ -421,4 +443,4 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 hi2[:size] = hi_[:size]
                 hi_ = hi2
             size = _heap_push(hv, hi_, size, ub, cid)
-    return n_bounds, n_exact
+    return n_bounds, n_exact, complete

@@ -81,6 +81,7 @@ def _axis(raw: np.ndarray, size: int):
 
 
 def _sat(mask: np.ndarray) -> np.ndarray:
+    """Summed-area table with a zero border."""
     out = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), np.int64)
     out[1:, 1:] = np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1)
     return out
@@ -122,8 +123,8 @@ class Prepared:
         self.wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
         ms = np.ascontiguousarray(mov.states)
         self.mstates = ms
-        self.occ_sat = _sat(ms == OCCUPIED_S)
-        self.free_sat = _sat(ms == FREE_S)
+        # one summed-area table of (occupied << 32 | free): both counts of a rectangle in four reads
+        self.cls_sat = _sat((ms == OCCUPIED_S).astype(np.int64) << 32 | (ms == FREE_S).astype(np.int64))
         self.rank = rank_table(self.k)
         self.tsum = self._tsum()
         half = n * self.res / 2.0
@@ -161,7 +162,14 @@ class Prepared:
                 part = np.zeros((0, 5), np.int64)
             parts.append(part.astype(np.int64))
             starts.append(starts[-1] + part.shape[0])
-        return np.ascontiguousarray(np.concatenate(parts)), np.array(starts, np.int64)
+        blk = np.ascontiguousarray(np.concatenate(parts))
+        # per block, its center's lattice coordinates at translation index (0, 0) and their norm (metres)
+        half = (blk[:, 2:3] * 0 + (1 << np.repeat(np.arange(LEVELS), np.diff(starts)))[:, None] - 1) / 2.0
+        m = (self.n - 1) / 2.0
+        bx = ((blk[:, 1:2] + half - self.axes_c[0]) - m) * self.res
+        by = ((blk[:, 0:1] + half - self.axes_r[0]) - m) * self.res
+        self.blkf = np.ascontiguousarray(np.concatenate([bx, by, np.hypot(bx, by)], axis=1).astype(np.float64))
+        return blk, np.array(starts, np.int64)
 
     def _tsum(self) -> np.ndarray:
         """Per translation (b·side + a): the reference ROI's occupied (NCC) or free (Birk–Carpin) points."""

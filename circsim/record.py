@@ -88,6 +88,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
+from merger.online import resolve_strategy
 from merger.overlay import colours_for, overlay_rgb
 
 from .events import MergeCycle, Observer, RobotTick
@@ -430,7 +431,8 @@ class RerunRecorder(Observer):
         omega = []
         for o in res.orders:
             for k, (moving, al) in enumerate(o.steps, 1):
-                if getattr(cfg, "strategy", "orders") == "tree":  # the pair searches of the tree's edges
+                if resolve_strategy(getattr(cfg, "strategy", "orders"), len(self.names)) == "tree":
+                    # the pair searches of the tree's edges
                     omega.append((f"{al.measure} tree edge {k}", al.score, None))
                     continue
                 onto = o.order[0] if moving == o.order[1] else "+".join(o.order[:o.order.index(moving)])

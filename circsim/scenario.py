@@ -176,8 +176,9 @@ class MergerSettings:
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
         holds, a partial team; null, the default, or more than the team: only with every teammate's map,
         as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
-    strategy : "orders" (the thesis: every merge order of the maps held) or "tree" (pairwise alignments
-        kept per map version, the team assembled along a maximum spanning tree of the verified pairs).
+    strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
+        thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
+        the team assembled along a maximum spanning tree of the verified pairs).
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.shared`). Off (default): every
@@ -198,7 +199,7 @@ class MergerSettings:
     ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
     combine_orders: bool = True
     min_maps: int | None = None
-    strategy: str = "orders"
+    strategy: str = "auto"
     share_hypotheses: bool = False
 
     def as_dict(self) -> dict[str, Any]:
@@ -367,7 +368,7 @@ _MERGER = section(MergerSettings, {
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
     "combine_orders": boolean,
     "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),
-    "strategy": choice("orders", "tree"), "share_hypotheses": boolean})
+    "strategy": choice("auto", "orders", "tree"), "share_hypotheses": boolean})
 _OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
                                "merged_log_period_s": optional(_NONNEG)})
 _TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",

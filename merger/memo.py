@@ -18,6 +18,7 @@ is bounded in entries (an entry may hold grids: an alignment's deferred evidence
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Hashable
 
@@ -48,6 +49,7 @@ class Memo:
         self.charged_ms = 0.0  # time of the stored results handed out since the last reset
         self.computed = 0
         self.shared = 0
+        self._lock = threading.Lock()  # the counters: a cycle's searches run on threads (merger.pool)
 
     def __len__(self) -> int:
         return len(self._cache)
@@ -58,18 +60,21 @@ class Memo:
         hit = self._cache.get(key)
         if hit is not None:
             value, ms = hit
-            self.charged_ms += ms
-            self.shared += 1
+            with self._lock:
+                self.charged_ms += ms
+                self.shared += 1
             return value
         t0 = time.perf_counter()
         value = compute()
         self._cache.put(key, (value, (time.perf_counter() - t0) * 1e3))
-        self.computed += 1
+        with self._lock:
+            self.computed += 1
         return value
 
     def take_charged_ms(self) -> float:
         """The charged time since the last call, and reset it."""
-        ms, self.charged_ms = self.charged_ms, 0.0
+        with self._lock:
+            ms, self.charged_ms = self.charged_ms, 0.0
         return ms
 
     def clear(self) -> None:

@@ -25,7 +25,17 @@ from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
 from .team import MapInput, MergeParams, TeamMergeResult, merge_team
 from .tree import merge_tree
 
-STRATEGIES = ("orders", "tree")
+STRATEGIES = ("auto", "orders", "tree")
+AUTO_ORDERS_MAX_TEAM = 3  # "auto": the thesis's merge orders for teams of up to this many robots, the tree beyond
+
+
+def resolve_strategy(strategy: str, team_size: int) -> str:
+    """The strategy a team of ``team_size`` robots runs: ``auto`` is the thesis's ``orders`` for up to
+    three robots (the thesis's case: three orders of two searches) and the ``tree`` beyond, where the
+    orders grow as N(N−1)/2 orders of N−1 searches per cycle."""
+    if strategy == "auto":
+        return "orders" if team_size <= AUTO_ORDERS_MAX_TEAM else "tree"
+    return strategy
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,7 +59,8 @@ class TeamMerger:
     params : merge parameters.
     min_maps : merge once this many maps are held, own map included (default: the whole team; 2: any
         pair; more than the team: the whole team).
-    strategy : "orders" (the thesis's merge orders) or "tree" (verified pairs, maximum spanning tree).
+    strategy : "auto" (default: "orders" up to three robots, "tree" beyond — :func:`resolve_strategy`),
+        "orders" (the thesis's merge orders) or "tree" (verified pairs, maximum spanning tree).
     """
 
     self_name: str
@@ -61,7 +72,7 @@ class TeamMerger:
     current_stamp: float | None = None
     cycles: int = 0
     reuse: bool = True  # reuse the pair alignment of two unchanged maps from the previous cycle
-    strategy: str = "orders"
+    strategy: str = "auto"
     adopted: int = 0  # received hypotheses adopted
     _pairs: dict = field(default_factory=dict, repr=False)
     memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.memo)
@@ -74,6 +85,7 @@ class TeamMerger:
             raise ValueError(f"team names must be unique: {self.team}")
         if self.strategy not in STRATEGIES:
             raise ValueError(f"strategy must be one of {STRATEGIES}, got {self.strategy!r}")
+        self.strategy = resolve_strategy(self.strategy, len(self.team))
 
     def receive(self, msg: MapMessage) -> bool:
         """Store a map; an older stamp than the one held (out-of-order delivery) is dropped."""

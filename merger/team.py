@@ -26,6 +26,7 @@ import numpy as np
 from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .memo import Memo, map_key
+from .pool import parallel_map
 from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
@@ -438,7 +439,8 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         memo.take_charged_ms()
     orders = merge_orders(len(maps), [m.name for m in maps])
     warps = Warps(maps)
-    aligned = [align_order(maps, o, params, reuse, warps, memo) for o in orders]
+    # the orders are independent: searched side by side (merger.pool; the same result on any schedule)
+    aligned = parallel_map(lambda o: align_order(maps, o, params, reuse, warps, memo), orders)
     if reuse is not None:  # keep only this cycle's pairs
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:

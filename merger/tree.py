@@ -44,6 +44,7 @@ import numpy as np
 from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .memo import Memo, map_key
+from .pool import parallel_map
 from .search import Alignment, angle_diff_deg, search, wrap_deg
 from .superpose import fuse
 from .team import (
@@ -284,22 +285,32 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     warps = Warps(maps)
     pairs: dict[tuple[int, int], PairResult] = {}
     live = set()
+    todo = []
     for i, j in pairwise(maps):
         # every robot searches a pair the same way: the map whose name comes first is the reference (so
         # teammates' results are the same, and shared through the memo)
         r, m = (j, i) if maps[j].name < maps[i].name else (i, j)
         key = _pair_key(maps[r], maps[m], params) if reuse is not None else None
         hit = reuse.get(key) if key is not None else None
-        if hit is None:
-            if memo is None:
-                hit = pair_result(maps, r, m, params, warps)
-            else:
-                hit = memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
-                               lambda r=r, m=m: pair_result(maps, r, m, params, warps))
-            if key is not None:
-                reuse[key] = hit
         live.add(key)
-        pairs[(i, j)] = hit
+        if hit is None:
+            todo.append(((i, j), r, m, key))
+        else:
+            pairs[(i, j)] = hit
+
+    def compute(task):
+        _, r, m, _ = task
+        if memo is None:
+            return pair_result(maps, r, m, params, warps)
+        return memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
+                        lambda: pair_result(maps, r, m, params, warps))
+
+    # the pairs are independent: searched side by side (merger.pool; the same result on any schedule)
+    for (ij, _, _, key), hit in zip(todo, parallel_map(compute, todo), strict=True):
+        if key is not None:
+            reuse[key] = hit
+        pairs[ij] = hit
+    pairs = {ij: pairs[ij] for ij in sorted(pairs)}
     if reuse is not None:
         for key in [k for k in reuse if k not in live]:
             del reuse[key]

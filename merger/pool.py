@@ -1,0 +1,52 @@
+"""The merge cycle's thread pool: a cycle's independent searches (merge orders, tree pairs) side by side.
+
+The search kernels release the GIL (numba ``nogil=True``), so threads use every core. Results come back
+in input order and each task is a pure function of its inputs, so a cycle's result is the same whatever
+the scheduling and the number of threads (``MERGER_THREADS``, default: the machine's cores; 1: none).
+A task that itself asks for the pool runs its work in its own thread (no nested waits on the pool).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
+
+_LOCK = threading.Lock()
+_POOL: ThreadPoolExecutor | None = None
+_INSIDE = threading.local()
+
+
+def threads() -> int:
+    """The pool's size: ``MERGER_THREADS`` if set (≥ 1), else the machine's cores."""
+    try:
+        n = int(os.environ.get("MERGER_THREADS", "0"))
+    except ValueError:
+        n = 0
+    return n if n >= 1 else (os.cpu_count() or 1)
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=threads(), thread_name_prefix="merger")
+        return _POOL
+
+
+def _run(fn, item):
+    _INSIDE.active = True
+    try:
+        return fn(item)
+    finally:
+        _INSIDE.active = False
+
+
+def parallel_map(fn: Callable, items: Iterable) -> list:
+    """``[fn(x) for x in items]``, computed on the pool (in order; exceptions re-raised in order)."""
+    items = list(items)
+    if len(items) < 2 or threads() < 2 or getattr(_INSIDE, "active", False):
+        return [fn(x) for x in items]
+    futures = [_pool().submit(_run, fn, x) for x in items]
+    return [f.result() for f in futures]

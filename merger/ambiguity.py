@@ -40,7 +40,7 @@ from .verify import Verification
 RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.AMBIGUOUS_M)
 PREFILTER_SLACK = 0.05  # the profile's runner-up score can be approximate (the fast search's polar
 # stage): a pair is examined exactly when that score is within margin + this of the best
-RIVAL_BUDGET = 20000  # regions the runner-up search may bound (deterministic: a count, not a time)
+RIVAL_BUDGET = 6000  # regions the runner-up search may bound (deterministic: a count, not a time)
 RIVAL_SPAN_DEG = 2  # the exact runner-up is the best coarse angle within ± this of the profile's
 
 VERDICTS = ("best", "runner_up", "unresolved")

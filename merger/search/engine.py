@@ -45,6 +45,8 @@ SLOT_BYTES = 32 * 2**20  # the moving ROIs kept per search (dense states and occ
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
+BEYOND_BUDGET = 6000  # regions the guard may bound (a count: deterministic); best-first, a better placement
+# is found early when there is one, the budget cuts the proof that there is none (docs/design/search.md §5)
 
 
 def _rot(angles: np.ndarray) -> np.ndarray:
@@ -232,11 +234,13 @@ def _apart(a, b) -> bool:
     return math.dist(a[1], b[1]) > BEYOND_APART_STEPS
 
 
-def beyond_window(problem, best_value: float, answer):
+def beyond_window(problem, best_value: float, answer, budget: int = BEYOND_BUDGET):
     """The best coarse alignment outside the window and within ``BEYOND_FACTOR`` × it (at most a quarter
     of the ROI side) that scores above ``best_value`` and is apart from the grid answer ``answer`` =
-    (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None — exactly (the first in the order θ, then
-    the translation order), by the branch and bound over that ring."""
+    (θ°, (a, b) cells): ``(θ°, (tx, ty) m, score)``, or None — by the branch and bound over that ring,
+    best-first within ``budget`` bounded regions (0: no limit; then exactly the first in the order θ,
+    then the translation order, as :func:`reference_beyond`). What it reports is always a real placement
+    scoring above ``best_value``; with the budget spent it may miss one (then None)."""
     k = problem.window_cells
     big = _wide(problem)
     kb = big.window_cells
@@ -252,7 +256,7 @@ def beyond_window(problem, best_value: float, answer):
         if not _apart((th_ans, (a, b)), (th_ans, (a_ans, b_ans))):
             excl_t[(b + kb) * side + (a + kb)] = True
     inc = np.array([best_value, -1, -1, -1, 0, 0, 0, 0, 0], np.float64)  # strictly above best_value
-    inc, _ = s.run(COARSE, mode=1, tmask=s.translation_mask(ring), inc=inc, excl=(excl_a, excl_t))
+    inc, _ = s.run(COARSE, mode=1, tmask=s.translation_mask(ring), inc=inc, excl=(excl_a, excl_t), budget=budget)
     if inc[3] < 0:
         return None
     return float(inc[3]), big.offset_m(int(inc[4]), int(inc[5])), float(inc[0])

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+from merger.grid import FREE_S, OccupancyGrid
 from merger.search import (
     RotationProblem,
     beyond_window,
@@ -26,6 +26,7 @@ from merger.search import (
 from merger.search.kernels import fill_moving
 from merger.search.lattice import moving_states_numpy, rotation_entries
 from merger.synthetic import window_case
+from tests.strategies import adversarial_problem, random_grid, random_point
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
 
@@ -35,62 +36,12 @@ def _key(al):
     return (al.theta_deg, al.cells, al.score, c.agree, c.disagree)
 
 
-def _random_grid(rng, side: int, res: float = 0.05, p=None) -> OccupancyGrid:
-    p = rng.dirichlet([1, 1, 1]) if p is None else p
-    st_ = rng.choice(3, size=(side, side), p=p).astype(np.uint8)
-    org = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))
-    return OccupancyGrid(st_, res, org)
-
-
-def _center(rng, g: OccupancyGrid, mode: str):
-    """A point inside ``g``: anywhere, on a cell centre or on a cell corner."""
-    col = int(rng.integers(g.width // 4, 3 * g.width // 4))
-    row = int(rng.integers(g.height // 4, 3 * g.height // 4))
-    if mode == "centre":
-        return (g.origin[0] + (col + 0.5) * g.resolution, g.origin[1] + (row + 0.5) * g.resolution)
-    if mode == "corner":
-        return (g.origin[0] + col * g.resolution, g.origin[1] + row * g.resolution)
-    return (g.origin[0] + float(rng.uniform(col, col + 1)) * g.resolution,
-            g.origin[1] + float(rng.uniform(row, row + 1)) * g.resolution)
-
-
-def adversarial_problem(seed: int, measure: str, window: bool) -> RotationProblem:
-    """One of several generated problem kinds (see the module documentation), small enough for the spec."""
-    rng = np.random.default_rng(seed)
-    kind = ("noise", "rotated_copy", "edge_wall", "near_empty", "two_res")[seed % 5]
-    mode = ("any", "centre", "corner")[(seed // 5) % 3]
-    side = int(rng.integers(16, 40))
-    g = _random_grid(rng, side)
-    h = _random_grid(rng, side)
-    if kind == "rotated_copy":  # a map against its own rotation, shifted by one cell: near-ties, plateaus
-        k = int(rng.integers(0, 4))
-        h = OccupancyGrid(np.roll(np.rot90(g.states, k), 1, axis=int(rng.integers(0, 2))), g.resolution, g.origin)
-    elif kind == "edge_wall":  # free maps with walls where the window's edge puts them
-        st_ = np.full((side, side), FREE_S, np.uint8)
-        st_[:, side // 2 + 3] = OCCUPIED_S
-        st_[side // 2 - 2, :] = OCCUPIED_S
-        g = OccupancyGrid(st_, 0.05, g.origin)
-        h = OccupancyGrid(np.rot90(st_).copy(), 0.05, h.origin)
-    elif kind == "near_empty":
-        st_ = np.zeros((side, side), np.uint8)
-        st_[rng.random(st_.shape) < 0.3] = FREE_S
-        for _ in range(int(rng.integers(0, 4))):
-            st_[rng.integers(0, side), rng.integers(0, side)] = OCCUPIED_S
-        h = OccupancyGrid(st_, 0.05, h.origin)
-    elif kind == "two_res":
-        h = _random_grid(rng, side // 2 + 4, res=0.1)
-    cr, cm = _center(rng, g, mode), _center(rng, h, mode)
-    roi = float(rng.choice([0.6, 0.75, 0.8, 1.0]))
-    w = float(rng.choice([0.05, 0.1, 0.15])) if window else 0.0
-    return RotationProblem(g, h, cr, cm, roi, measure, w)
-
-
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("theta", [0.0, 1.0, 45.0, 90.0, 179.3, 270.0, -0.3])
 def test_compiled_moving_states_equal_the_numpy_specification(seed, theta):
     rng = np.random.default_rng(seed)
-    g = _random_grid(rng, 30, res=0.05 if seed % 2 else 0.1)
-    c = _center(rng, g, ("any", "centre", "corner")[seed % 3])
+    g = random_grid(rng, 30, res=0.05 if seed % 2 else 0.1)
+    c = random_point(rng, g, ("any", "centre", "corner")[seed % 3])
     n = 24 + seed
     want = moving_states_numpy(g, theta, c, n, 0.05)
     dense = np.empty(n * n, np.uint8)

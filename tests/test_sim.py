@@ -48,7 +48,8 @@ def test_online_scene_merges_correctly_for_every_robot(name):
 def test_four_robots_merge_in_all_six_orders():
     """The bench and the team merge are general in N: four robots, N(N−1)/2 = 6 orders per cycle of
     all four maps (a partial team's cycle merges the m < N maps it holds in m(m−1)/2 orders)."""
-    sc = scene("scene1", "robots.names=[A,B,C,D]", "robots.start_angles_deg=[0,90,180,270]", "duration_s=6")
+    sc = scene("scene1", "robots.names=[A,B,C,D]", "robots.start_angles_deg=[0,90,180,270]", "duration_s=6",
+               "merger.strategy=orders")  # auto would take the tree for four robots
     orders = set()
 
     class Collect(Observer):

@@ -28,6 +28,7 @@ from merger.search import (
     RotationProblem,
     angle_diff_deg,
     check_window,
+    exact_runner_up as exact_window_runner_up,
     search,
     searcher_for,
     translation_offsets,

@@ -45,7 +45,7 @@ SLOT_BYTES = 32 * 2**20  # the moving ROIs kept per search (dense states and occ
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
-BEYOND_BUDGET = 6000  # regions the guard may bound (a count: deterministic); best-first, a better placement
+BEYOND_BUDGET = 40000  # regions the guard may bound (a count: deterministic); best-first, a better placement
 # is found early when there is one, the budget cuts the proof that there is none (docs/design/search.md §5)
 
 

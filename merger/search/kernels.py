@@ -280,9 +280,10 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     rmax = half * math.sqrt(2.0)
     n_slots = slot_angle.size
     cap = 4096
-    nodes = np.empty((cap, 6), np.int64)  # angle lo, hi, a0, a1, b0, b1
+    nodes = np.empty((cap, 7), np.int64)  # angle lo, hi, a0, a1, b0, b1, depth
     hv = np.empty(cap, np.float64)
     hi_ = np.empty(cap, np.int64)
+    bounds_ = np.full(cap, np.inf)  # each region's own bound
     size = 0
     n_nodes = 0
     n_bounds = 0
@@ -300,6 +301,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         nodes[n_nodes, 3] = side - 1
         nodes[n_nodes, 4] = 0
         nodes[n_nodes, 5] = side - 1
+        nodes[n_nodes, 6] = 0
         size = _heap_push(hv, hi_, size, np.inf, n_nodes)
         n_nodes += 1
         s0 = s1 + 1
@@ -311,8 +313,10 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         if budget > 0 and n_bounds >= budget:
             complete = False
             break
-        bval, nid, size = _heap_pop(hv, hi_, size)
+        _, nid, size = _heap_pop(hv, hi_, size)
+        bval = bounds_[nid]
         lo, hi, a0, a1, b0, b1 = nodes[nid, 0], nodes[nid, 1], nodes[nid, 2], nodes[nid, 3], nodes[nid, 4], nodes[nid, 5]
+        depth = nodes[nid, 6]
         free_ids[n_free_ids] = nid
         n_free_ids += 1
         # the region's smallest tie keys among its allowed elements
@@ -419,7 +423,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 n_free_ids -= 1
             else:
                 if n_nodes >= nodes.shape[0]:
-                    grown = np.empty((2 * nodes.shape[0], 6), np.int64)
+                    grown = np.empty((2 * nodes.shape[0], 7), np.int64)
                     grown[:n_nodes] = nodes[:n_nodes]
                     nodes = grown
                     hv2 = np.empty(2 * hv.size, np.float64)
@@ -428,6 +432,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                     hi2 = np.empty(2 * hi_.size, np.int64)
                     hi2[:size] = hi_[:size]
                     hi_ = hi2
+                    b2 = np.full(2 * bounds_.size, np.inf)
+                    b2[:bounds_.size] = bounds_
+                    bounds_ = b2
                     fi2 = np.empty(2 * free_ids.size, np.int64)
                     fi2[:n_free_ids] = free_ids[:n_free_ids]
                     free_ids = fi2
@@ -435,6 +442,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 n_nodes += 1
             for z in range(6):
                 nodes[cid, z] = child[c, z]
+            nodes[cid, 6] = depth + 1
             if size >= hv.size:
                 hv2 = np.empty(2 * hv.size, np.float64)
                 hv2[:size] = hv[:size]
@@ -442,5 +450,8 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 hi2 = np.empty(2 * hi_.size, np.int64)
                 hi2[:size] = hi_[:size]
                 hi_ = hi2
-            size = _heap_push(hv, hi_, size, ub, cid)
+            # visit order (free: only bounds and keys decide): the highest bound, deeper regions first among
+            # equal bounds (an incumbent sooner); the region keeps its own bound for the pruning test
+            bounds_[cid] = ub
+            size = _heap_push(hv, hi_, size, ub + (depth + 1) * 1e-12, cid)
     return n_bounds, n_exact, complete

@@ -28,12 +28,14 @@ from merger.search import (
     RotationProblem,
     angle_diff_deg,
     check_window,
-    exact_runner_up as exact_window_runner_up,
     search,
     searcher_for,
     translation_offsets,
     window_cells,
     wrap_deg,
+)
+from merger.search import (
+    exact_runner_up as exact_window_runner_up,
 )
 from merger.similarity import measure_fn
 from merger.synthetic import (

@@ -85,6 +85,18 @@ def test_fast_equals_the_compiled_reference_at_full_size(kind, seed):
             assert exact_runner_up(p, fast.theta_deg) == ref.runner_up
 
 
+@pytest.mark.parametrize("kind", ["views", "symmetric", "noise", "identical"])
+@pytest.mark.parametrize("seed", range(3))
+def test_rotation_only_fast_equals_the_reference_at_full_size(kind, seed):
+    """W = 0 (the thesis): the polar bounds of every whole degree (Lemma 6), ROI 6–8 m, all measures."""
+    c = window_case(seed, kind, roi_m=(6.0, 8.0))
+    for measure in MEASURES:
+        p = RotationProblem(c.ref, c.moving, c.center_ref, c.center_moving, c.roi_m, measure, 0.0)
+        ref, fast = reference_search(p), fast_search(p)
+        assert _key(fast) == _key(ref), (kind, seed, measure)
+        assert np.all(fast.profile >= ref.profile) and np.all(fast.profile <= ref.profile.max())
+
+
 @pytest.mark.parametrize("mode", ["centre", "corner"])
 def test_centers_on_cell_borders_at_full_size(mode):
     c = window_case(1, "views", roi_m=(6.0, 6.0), window_m=(0.25, 0.25))

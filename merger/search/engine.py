@@ -28,7 +28,8 @@ from ..similarity import Counts, measure_fn
 from . import caches
 from .kernels import branch_and_bound, exact_counts, fill_moving
 from .lattice import rotation_entries
-from .measures import NCC
+from .measures import NCC, upper_of
+from .polar import angle_bounds, polar_tables
 from .prepared import Prepared, translation_offsets
 from .problem import (
     MAX_WINDOW_FRACTION,
@@ -92,13 +93,13 @@ class Searcher:
         return self._asum
 
     def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0, budget: int = 0):
+            sector0: int = SECTOR0, budget: int = 0, init_bounds=None):
         """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
         ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it."""
         with self.lock:
-            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget)
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init_bounds)
 
-    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget):
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init_bounds):
         p = self.p
         angles = np.asarray(angles, np.float64)
         rot = self._use(angles)
@@ -114,7 +115,8 @@ class Searcher:
                                   p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
                                   angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
-                                  self.slot_counts, inc, env, self.hist)
+                                  self.slot_counts, inc, env, self.hist,
+                                  np.zeros(0) if init_bounds is None else init_bounds)
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
         return inc, env
@@ -151,6 +153,37 @@ class Searcher:
             out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n)
         return out
 
+    def polar_bounds(self) -> np.ndarray:
+        """Rotation only: an upper bound of the value at every whole-degree angle (Lemma 6, polar.py)."""
+        p = self.p
+        self._use(COARSE)
+        ring_w = p.res
+        half = float(p.ctx_f[6])
+        n_rings = int(math.ceil(half * math.sqrt(2.0) / ring_w)) + 2
+        may, nf = polar_tables(p.cls_sat, p.mstates.shape[0], p.mstates.shape[1], *p.ctx_f[1:6], half, ring_w,
+                               n_rings)
+        # the reference ROI's occupied lattice points (each reads one cell; a cell may be read by 1–4)
+        rlo, clo = int(p.axes_r[3]), int(p.axes_c[3])
+        i0 = p.ilo[p.k, p.qr - rlo]
+        ni = p.ihi[p.k, p.qr - rlo] - i0
+        j0 = p.jlo[p.k, p.qc - clo]
+        nj = p.jhi[p.k, p.qc - clo] - j0
+        ii, jj = [], []
+        for di in range(int(ni.max(initial=0))):
+            for dj in range(int(nj.max(initial=0))):
+                sel = (di < ni) & (dj < nj)
+                ii.append(i0[sel] + di)
+                jj.append(j0[sel] + dj)
+        m = (p.n - 1) / 2.0
+        ii = np.concatenate(ii) if ii else np.zeros(0, np.int64)
+        jj = np.concatenate(jj) if jj else np.zeros(0, np.int64)
+        agr, dis = angle_bounds((jj - m) * p.res, (ii - m) * p.res, may, nf, ring_w)
+        sums = self.angle_sums()
+        sx = int(p.tsum[p.k * p.side + p.k])
+        code = p.measure.code
+        return np.array([upper_of(code, int(agr[x]), int(dis[x]), sx, sx, int(sums[x]), int(sums[x]), p.n * p.n)
+                         for x in range(360)], np.float64)
+
     def values_at_angles(self, angles, t) -> np.ndarray:
         """Exact values at one translation ``t`` (cells) for each of ``angles``."""
         return np.array([self.values(float(a), [t])[0] for a in angles], np.float64)
@@ -182,7 +215,8 @@ def _fine(s: Searcher, th_c: float, tc) -> tuple[np.ndarray, np.ndarray, int]:
 def fast_search(problem) -> Alignment:
     """The thesis's grid answer by branch and bound (see the module documentation); exact."""
     s = searcher_for(problem)
-    inc, env = s.run(COARSE)
+    # rotation only: every whole-degree angle bounded at once (polar cells), then the best-first search
+    inc, env = s.run(COARSE, init_bounds=s.polar_bounds() if s.p.k == 0 else None)
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
     value, counts = s.exact(float(angles[kf]), *tc)

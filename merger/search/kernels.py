@@ -258,7 +258,7 @@ def _before(v, p, s, iv, ip, is_):
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
-                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist):
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_bounds):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
     ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget).
@@ -289,8 +289,21 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     n_bounds = 0
     n_exact = 0
     box = np.empty(4, np.int64)
-    # the first regions: sectors of sector0 angles × the whole window
-    s0 = 0
+    # the first regions: single angles with bounds given (init_bounds, Lemma 6) or sectors of sector0
+    # angles × the whole window
+    if init_bounds.size == n_ang:
+        for x in range(n_ang):
+            nodes[n_nodes, 0] = x
+            nodes[n_nodes, 1] = x
+            nodes[n_nodes, 2] = 0
+            nodes[n_nodes, 3] = side - 1
+            nodes[n_nodes, 4] = 0
+            nodes[n_nodes, 5] = side - 1
+            nodes[n_nodes, 6] = 0
+            bounds_[n_nodes] = init_bounds[x]
+            size = _heap_push(hv, hi_, size, init_bounds[x], n_nodes)
+            n_nodes += 1
+    s0 = 0 if init_bounds.size != n_ang else n_ang
     while s0 < n_ang:
         s1 = min(s0 + sector0, n_ang) - 1
         if n_nodes >= cap:

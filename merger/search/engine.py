@@ -26,9 +26,9 @@ import numpy as np
 
 from ..similarity import Counts, measure_fn
 from . import caches
-from .kernels import branch_and_bound, exact_counts, fill_moving
+from .kernels import branch_and_bound, exact_counts, exact_counts_sparse, fill_moving, sparse_moving
 from .lattice import rotation_entries
-from .measures import NCC, upper_of
+from .measures import NCC, uppers
 from .polar import angle_bounds, polar_tables
 from .prepared import Prepared, translation_offsets
 from .problem import (
@@ -42,7 +42,8 @@ from .problem import (
 )
 
 COARSE = np.arange(360.0)
-SLOT_BYTES = 32 * 2**20  # the moving ROIs kept per search (dense states and occupied points)
+SLOT_BYTES = 8 * 2**20  # the moving ROIs kept per search (dense states and occupied points) ...
+MAX_SLOTS = 32  # ... at most this many angles (a search evaluates few angles exactly)
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
@@ -51,7 +52,12 @@ BEYOND_BUDGET = 40000  # regions the guard may bound (a count: deterministic); b
 
 
 def _rot(angles: np.ndarray) -> np.ndarray:
+    if angles.shape == COARSE.shape and np.array_equal(angles, COARSE):
+        return _COARSE_ROT
     return np.array([rotation_entries(float(a)) for a in angles], np.float64).reshape(-1, 4)
+
+
+_COARSE_ROT = np.array([rotation_entries(float(a)) for a in COARSE], np.float64)
 
 
 class Searcher:
@@ -61,11 +67,13 @@ class Searcher:
         self.p = Prepared(problem, k)
         n = self.p.n
         self._angles: np.ndarray | None = None
-        n_slots = int(min(360, max(2, SLOT_BYTES // (5 * n * n))))
-        self.slots_dense = np.zeros((n_slots, n * n), np.uint8)
-        self.slots_pocc = np.zeros((n_slots, n * n), np.int32)
+        n_slots = int(min(MAX_SLOTS, max(2, SLOT_BYTES // (5 * n * n))))
+        self.slots_dense = np.empty((n_slots, n * n), np.uint8)  # read only where slot_angle says filled
+        self.slots_pocc = np.empty((n_slots, n * n), np.int32)
         self.slot_counts = np.zeros((n_slots, 2), np.int64)
         self.slot_angle = np.full(n_slots, -1, np.int64)
+        self.mark = np.zeros(n * n, np.int32)  # lattice points seen by sparse_moving, by generation
+        self.gen = np.zeros(1, np.int64)
         self.stats = {"bounds": 0, "exact": 0}
         self.hist = np.zeros(16, np.int64)  # bounds per block level (sectors, then single angles), cells read
         self.lock = threading.RLock()  # one search at a time per searcher (its ROI slots are shared)
@@ -116,7 +124,8 @@ class Searcher:
                                   angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env, self.hist,
-                                  np.zeros(0) if init_bounds is None else init_bounds)
+                                  np.zeros(0) if init_bounds is None else init_bounds, p.occ_x, p.occ_y,
+                                  self.mark, self.gen)
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
         return inc, env
@@ -137,17 +146,33 @@ class Searcher:
 
     def values(self, theta_deg: float, ts) -> np.ndarray:
         """Exact values at one angle for translations ``ts`` ((a, b) cells, within the window)."""
+        with self.lock:
+            return self._values(theta_deg, ts)
+
+    def _values(self, theta_deg: float, ts) -> np.ndarray:
         p = self.p
         rot = rotation_entries(theta_deg)
-        dense = np.empty(p.n * p.n, np.uint8)
         pocc = np.empty(p.n * p.n, np.int32)
-        no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *rot, dense, pocc)
+        dense = None
+        if p.measure.needs_free_agree:  # free/free: the dense ROI
+            dense = np.empty(p.n * p.n, np.uint8)
+            no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *rot, dense, pocc)
+        else:
+            self.gen[0] += 1
+            no = sparse_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *rot, p.occ_x, p.occ_y, self.mark,
+                               self.gen[0], pocc)
+            nf = 0
         out = np.empty(len(ts))
-        need_ff = p.measure.needs_free_agree
         for x, (a, b) in enumerate(ts):
             ai, bi = a + p.k, b + p.k
-            agr, dis, ff = exact_counts(dense, pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc, p.axes_r[3],
-                                        p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, need_ff)
+            if dense is not None:
+                agr, dis, ff = exact_counts(dense, pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc,
+                                            p.axes_r[3], p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, True)
+            else:
+                agr, dis = exact_counts_sparse(pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc, p.axes_r[3],
+                                               p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, p.mstates,
+                                               *p.ctx_f[1:6], p.res, *rot)
+                ff = 0
             sx = p.tsum[bi * p.side + ai]
             sy = no if p.measure.code == NCC else nf
             out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n)
@@ -178,11 +203,8 @@ class Searcher:
         ii = np.concatenate(ii) if ii else np.zeros(0, np.int64)
         jj = np.concatenate(jj) if jj else np.zeros(0, np.int64)
         agr, dis = angle_bounds((jj - m) * p.res, (ii - m) * p.res, may, nf, ring_w)
-        sums = self.angle_sums()
         sx = int(p.tsum[p.k * p.side + p.k])
-        code = p.measure.code
-        return np.array([upper_of(code, int(agr[x]), int(dis[x]), sx, sx, int(sums[x]), int(sums[x]), p.n * p.n)
-                         for x in range(360)], np.float64)
+        return uppers(p.measure.code, agr, dis, sx, self.angle_sums(), p.n * p.n)
 
     def values_at_angles(self, angles, t) -> np.ndarray:
         """Exact values at one translation ``t`` (cells) for each of ``angles``."""

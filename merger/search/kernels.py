@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .lattice import moving_states
+from .lattice import moving_states, state_at
 from .measures import BIRK_CARPIN, NCC, upper_of, value_of
 
 EPS_CELLS = 1e-6  # margin of the bound's discs (cells): covers the bound's own float rounding
@@ -42,6 +42,67 @@ def fill_moving(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, dens
             pocc[k] = p
             k += 1
     return n_occ, n_free
+
+
+@njit(cache=True, nogil=True)
+def sparse_moving(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, occ_x, occ_y, mark, gen, pocc):
+    """The occupied lattice points of the moving ROI under one angle into ``pocc``, without the dense
+    ROI: each occupied moving cell (centre (occ_x, occ_y) about c_m) is read only by lattice points
+    within 0.7072 cell of R(θ)(its centre) (the rotated cell's half-diagonal); those candidates are
+    read with :func:`merger.search.lattice.state_at`. ``mark``/``gen``: candidates seen. Returns their
+    number."""
+    m = (n - 1) / 2.0
+    half = n * res / 2.0
+    reach = 0.7072 * res_m / res + 1e-6
+    count = 0
+    for q in range(occ_x.size):
+        # R(θ) is the transpose of R(−θ)
+        jc = (r00 * occ_x[q] + r10 * occ_y[q]) / res + m
+        ic = (r01 * occ_x[q] + r11 * occ_y[q]) / res + m
+        i0 = max(int(math.ceil(ic - reach)), 0)
+        i1 = min(int(math.floor(ic + reach)), n - 1)
+        j0 = max(int(math.ceil(jc - reach)), 0)
+        j1 = min(int(math.floor(jc + reach)), n - 1)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                p = i * n + j
+                if mark[p] == gen:
+                    continue
+                mark[p] = gen
+                if state_at(mstates, res_m, ox, oy, cx, cy, m, half, res, r00, r01, r10, r11, i, j) == 2:
+                    pocc[count] = p
+                    count += 1
+    return count
+
+
+@njit(cache=True, nogil=True)
+def exact_counts_sparse(pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, ilo, ihi, jlo, jhi, n,
+                        mstates, res_m, ox, oy, cx, cy, res, r00, r01, r10, r11):
+    """(agr, dis) as :func:`exact_counts`, the moving ROI read point by point (no dense ROI)."""
+    agr = 0
+    dis = 0
+    for t in range(n_occ):
+        p = pocc[t]
+        i = p // n
+        j = p - i * n
+        r = rows[bi, i]
+        c = cols[ai, j]
+        if r >= 0 and c >= 0:
+            s = ref[r, c]
+            if s == 2:
+                agr += 1
+            elif s == 1:
+                dis += 1
+    m = (n - 1) / 2.0
+    half = n * res / 2.0
+    for q in range(qr.size):
+        r = qr[q] - rlo
+        c = qc[q] - clo
+        for i in range(ilo[bi, r], ihi[bi, r]):
+            for j in range(jlo[ai, c], jhi[ai, c]):
+                if state_at(mstates, res_m, ox, oy, cx, cy, m, half, res, r00, r01, r10, r11, i, j) == 1:
+                    dis += 1
+    return agr, dis
 
 
 @njit(cache=True, nogil=True)
@@ -258,7 +319,8 @@ def _before(v, p, s, iv, ip, is_):
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
-                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_bounds):
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_bounds,
+                     occ_x, occ_y, mark, gen):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
     ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget).
@@ -359,15 +421,29 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             if excl_a[lo] and excl_t[b0 * side + a0]:
                 continue
             slot = lo % n_slots
-            if slot_angle[slot] != lo:
-                no, nf = fill_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
-                                     rot[lo, 2], rot[lo, 3], slots_dense[slot], slots_pocc[slot])
-                slot_angle[slot] = lo
-                slot_counts[slot, 0] = no
-                slot_counts[slot, 1] = nf
-            agr, dis, ff = exact_counts(slots_dense[slot], slots_pocc[slot], slot_counts[slot, 0], ref, cols,
-                                        rows, a0, b0, qr, qc, axes_r[3], axes_c[3], ilo, ihi, jlo, jhi, n,
-                                        need_ff)
+            if code == BIRK_CARPIN:  # free/free: the dense ROI
+                if slot_angle[slot] != lo:
+                    no, nf = fill_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
+                                         rot[lo, 2], rot[lo, 3], slots_dense[slot], slots_pocc[slot])
+                    slot_angle[slot] = lo
+                    slot_counts[slot, 0] = no
+                    slot_counts[slot, 1] = nf
+                agr, dis, ff = exact_counts(slots_dense[slot], slots_pocc[slot], slot_counts[slot, 0], ref, cols,
+                                            rows, a0, b0, qr, qc, axes_r[3], axes_c[3], ilo, ihi, jlo, jhi, n,
+                                            need_ff)
+            else:
+                if slot_angle[slot] != lo:
+                    gen[0] += 1
+                    no = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
+                                       rot[lo, 2], rot[lo, 3], occ_x, occ_y, mark, gen[0], slots_pocc[slot])
+                    slot_angle[slot] = lo
+                    slot_counts[slot, 0] = no
+                    slot_counts[slot, 1] = 0
+                agr, dis = exact_counts_sparse(slots_pocc[slot], slot_counts[slot, 0], ref, cols, rows, a0, b0, qr,
+                                               qc, axes_r[3], axes_c[3], ilo, ihi, jlo, jhi, n, mstates, res_m,
+                                               mox, moy, mcx, mcy, res, rot[lo, 0], rot[lo, 1], rot[lo, 2],
+                                               rot[lo, 3])
+                ff = 0
             n_exact += 1
             sx = tsum[b0 * side + a0]
             sy = slot_counts[slot, 0] if code == NCC else slot_counts[slot, 1]
@@ -409,7 +485,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             # the block level: blocks no wider than the region's own blur
             blur = ((box[1] - box[0]) + (box[3] - box[2])) / 4.0 + 2.0 * math.sin(half_rad / 2.0) * rmax / res / 2.0
             level = 0
-            while level + 1 < LEVELS and (1 << (level + 1)) <= blur:
+            while level + 2 < lvl_start.size and (1 << (level + 1)) <= blur:
                 level += 1
             agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
                                           mh, mw, th_mid, half_rad, box, level)

@@ -73,26 +73,33 @@ def ref_axes_numpy(ref, center_ref, n: int, k: int) -> tuple[np.ndarray, np.ndar
 
 
 @njit(cache=True, nogil=True)
+def state_at(states, res_m, ox, oy, cx, cy, m, half, res, r00, r01, r10, r11, i, j):
+    """The state lattice point (i, j) reads under the rotation R(−θ) = (r00, r01, r10, r11): the
+    compiled form of :func:`moving_states_numpy` at one point (m = (n−1)/2, half = n·r/2)."""
+    ky = (i - m) * res
+    kx = (j - m) * res
+    dx = r00 * kx + r01 * ky
+    dy = r10 * kx + r11 * ky
+    if abs(dx) < half and abs(dy) < half:
+        h, w = states.shape
+        u = ((cx + dx) - ox) / res_m  # floor(u) in [0, w) ⇔ 0 ≤ u < w
+        v = ((cy + dy) - oy) / res_m
+        if 0.0 <= u < w and 0.0 <= v < h:
+            return states[int(v), int(u)]
+    return 0
+
+
+@njit(cache=True, nogil=True)
 def moving_states(states, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, out):
     """Compiled :func:`moving_states_numpy` into ``out`` (n·n uint8, row-major); returns the number of
     occupied and of free lattice points."""
-    h, w = states.shape
     half = n * res / 2.0
     m = (n - 1) / 2.0
     n_occ = 0
     n_free = 0
     for i in range(n):
-        ky = (i - m) * res
         for j in range(n):
-            kx = (j - m) * res
-            dx = r00 * kx + r01 * ky
-            dy = r10 * kx + r11 * ky
-            s = 0
-            if abs(dx) < half and abs(dy) < half:
-                u = ((cx + dx) - ox) / res_m  # floor(u) in [0, w) ⇔ 0 ≤ u < w
-                v = ((cy + dy) - oy) / res_m
-                if 0.0 <= u < w and 0.0 <= v < h:
-                    s = states[int(v), int(u)]
+            s = state_at(states, res_m, ox, oy, cx, cy, m, half, res, r00, r01, r10, r11, i, j)
             out[i * n + j] = s
             if s == 2:
                 n_occ += 1

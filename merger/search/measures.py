@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from numba import njit
 
 SIMILARITY, BIRK_CARPIN, NCC = 0, 1, 2
@@ -71,6 +72,15 @@ def upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
     if vx <= 0 or vy <= 0:
         return 0.0
     return num / math.sqrt(vx * vy) * (1.0 + 1e-12) + 1e-12
+
+
+@njit(cache=True, nogil=True)
+def uppers(code, agr_hi, dis_lo, sx, sy, n_cells):
+    """:func:`upper_of` per angle: count bounds ``agr_hi``, ``dis_lo`` and ``sy`` per angle, one ``sx``."""
+    out = np.empty(agr_hi.size)
+    for x in range(agr_hi.size):
+        out[x] = upper_of(code, agr_hi[x], dis_lo[x], sx, sx, sy[x], sy[x], n_cells)
+    return out
 
 
 @dataclass(frozen=True)

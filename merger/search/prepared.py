@@ -128,6 +128,13 @@ class Prepared:
         self.rank = rank_table(self.k)
         self.tsum = self._tsum()
         half = n * self.res / 2.0
+        # the moving map's occupied cells a lattice point can read: their centres about c_m (metres)
+        rr, cc = np.nonzero(ms == OCCUPIED_S)
+        ox_ = mov.origin[0] + (cc + 0.5) * mov.resolution - float(problem.center_moving[0])
+        oy_ = mov.origin[1] + (rr + 0.5) * mov.resolution - float(problem.center_moving[1])
+        near = (np.abs(ox_) <= half + mov.resolution) & (np.abs(oy_) <= half + mov.resolution)
+        self.occ_x = np.ascontiguousarray(ox_[near])
+        self.occ_y = np.ascontiguousarray(oy_[near])
         self.ctx_f = np.array([self.res, mov.resolution, mov.origin[0], mov.origin[1],
                                float(problem.center_moving[0]), float(problem.center_moving[1]), half])
 
@@ -137,7 +144,8 @@ class Prepared:
         (Lemma 3: a bound on agr̃), and 1 when no translation skips one of its rows or columns."""
         parts, starts = [], [0]
         rlo, clo = int(self.axes_r[3]), int(self.axes_c[3])
-        for level in range(LEVELS):
+        levels = 1 if self.k == 0 else LEVELS  # rotation only: the regions are thin (polar.py seeds them)
+        for level in range(levels):
             s = 1 << level
             if self.qr.size:
                 br, bc = self.qr // s, self.qc // s
@@ -164,7 +172,7 @@ class Prepared:
             starts.append(starts[-1] + part.shape[0])
         blk = np.ascontiguousarray(np.concatenate(parts))
         # per block, its center's lattice coordinates at translation index (0, 0) and their norm (metres)
-        half = (blk[:, 2:3] * 0 + (1 << np.repeat(np.arange(LEVELS), np.diff(starts)))[:, None] - 1) / 2.0
+        half = (blk[:, 2:3] * 0 + (1 << np.repeat(np.arange(levels), np.diff(starts)))[:, None] - 1) / 2.0
         m = (self.n - 1) / 2.0
         bx = ((blk[:, 1:2] + half - self.axes_c[0]) - m) * self.res
         by = ((blk[:, 0:1] + half - self.axes_r[0]) - m) * self.res

@@ -1,4 +1,5 @@
-"""The search's only cache: the prepared searcher of the last problems, and :func:`clear_all`.
+"""The search's caches: the prepared searcher of the last problems, the moving maps' own arrays, and
+:func:`clear_all`.
 
 A merge cycle asks several questions of one problem object (the answer, then perhaps the runner-up,
 the guard beyond the window, a rival's values): they share one :class:`merger.search.engine.Searcher`
@@ -33,7 +34,31 @@ def searcher(problem, k, factory):
     return s
 
 
+MOVING_ENTRIES = 16
+_MOVING: OrderedDict = OrderedDict()
+
+
+def moving_side(grid, key: tuple, factory):
+    """Arrays that depend on the moving map alone (and ``key``: its center, the ROI), kept for the
+    last ``MOVING_ENTRIES`` maps: a map is the moving map of several searches of a merge cycle. The grid
+    object itself is held with its entry, so an id is never mistaken for another map's."""
+    k = (id(grid),) + key
+    with _LOCK:
+        hit = _MOVING.get(k)
+        if hit is not None and hit[0] is grid:
+            _MOVING.move_to_end(k)
+            return hit[1]
+    value = factory()
+    with _LOCK:
+        _MOVING[k] = (grid, value)
+        while len(_MOVING) > MOVING_ENTRIES:
+            _MOVING.popitem(last=False)
+    return value
+
+
 def clear_all() -> None:
-    """Forget every cached searcher (memory between independent runs, e.g. sweep workers)."""
+    """Forget every cached searcher and moving-map array (memory between independent runs, e.g. sweep
+    workers)."""
     with _LOCK:
         _SEARCHERS.clear()
+        _MOVING.clear()

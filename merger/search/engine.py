@@ -185,8 +185,10 @@ class Searcher:
         ring_w = p.res
         half = float(p.ctx_f[6])
         n_rings = int(math.ceil(half * math.sqrt(2.0) / ring_w)) + 2
-        may, nf = polar_tables(p.cls_sat, p.mstates.shape[0], p.mstates.shape[1], *p.ctx_f[1:6], half, ring_w,
-                               n_rings)
+        may, nf = caches.moving_side(
+            p.problem.moving, ("polar", tuple(p.ctx_f[1:7]), ring_w, n_rings),
+            lambda: polar_tables(p.cls_sat, p.mstates.shape[0], p.mstates.shape[1], *p.ctx_f[1:6], half, ring_w,
+                                 n_rings))
         # the reference ROI's occupied lattice points (each reads one cell; a cell may be read by 1–4)
         rlo, clo = int(p.axes_r[3]), int(p.axes_c[3])
         i0 = p.ilo[p.k, p.qr - rlo]

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import FREE_S, OCCUPIED_S
+from . import caches
 from .kernels import LEVELS
 from .lattice import lattice_offsets, ref_axes_numpy
 from .measures import measure
@@ -87,6 +88,17 @@ def _sat(mask: np.ndarray) -> np.ndarray:
     return out
 
 
+def _moving_arrays(mov, ms, cm, half):
+    """The moving map's summed-area table of (occupied << 32 | free) (both counts of a rectangle in four
+    reads) and the centres about c_m (metres) of the occupied cells a lattice point can read."""
+    cls_sat = _sat((ms == OCCUPIED_S).astype(np.int64) << 32 | (ms == FREE_S).astype(np.int64))
+    rr, cc = np.nonzero(ms == OCCUPIED_S)
+    ox_ = mov.origin[0] + (cc + 0.5) * mov.resolution - cm[0]
+    oy_ = mov.origin[1] + (rr + 0.5) * mov.resolution - cm[1]
+    near = (np.abs(ox_) <= half + mov.resolution) & (np.abs(oy_) <= half + mov.resolution)
+    return cls_sat, np.ascontiguousarray(ox_[near]), np.ascontiguousarray(oy_[near])
+
+
 class Prepared:
     """The arrays of one problem (see the module documentation). ``k``: the window in cells."""
 
@@ -123,18 +135,12 @@ class Prepared:
         self.wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
         ms = np.ascontiguousarray(mov.states)
         self.mstates = ms
-        # one summed-area table of (occupied << 32 | free): both counts of a rectangle in four reads
-        self.cls_sat = _sat((ms == OCCUPIED_S).astype(np.int64) << 32 | (ms == FREE_S).astype(np.int64))
+        half = n * self.res / 2.0
+        cm = (float(problem.center_moving[0]), float(problem.center_moving[1]))
+        self.cls_sat, self.occ_x, self.occ_y = caches.moving_side(
+            mov, ("prepared", cm, half), lambda: _moving_arrays(mov, ms, cm, half))
         self.rank = rank_table(self.k)
         self.tsum = self._tsum()
-        half = n * self.res / 2.0
-        # the moving map's occupied cells a lattice point can read: their centres about c_m (metres)
-        rr, cc = np.nonzero(ms == OCCUPIED_S)
-        ox_ = mov.origin[0] + (cc + 0.5) * mov.resolution - float(problem.center_moving[0])
-        oy_ = mov.origin[1] + (rr + 0.5) * mov.resolution - float(problem.center_moving[1])
-        near = (np.abs(ox_) <= half + mov.resolution) & (np.abs(oy_) <= half + mov.resolution)
-        self.occ_x = np.ascontiguousarray(ox_[near])
-        self.occ_y = np.ascontiguousarray(oy_[near])
         self.ctx_f = np.array([self.res, mov.resolution, mov.origin[0], mov.origin[1],
                                float(problem.center_moving[0]), float(problem.center_moving[1]), half])
 

@@ -1,5 +1,8 @@
 """Compiled kernels of the search: exact counts, region bounds and the branch and bound.
 
+(Longer than ~400 lines: the kernels share one set of arrays and are read together; the branch and
+bound is one compiled function so that its loop never returns to Python.)
+
 Everything here works on the arrays of :class:`merger.search.prepared.Prepared` (the lattice tables of
 :mod:`merger.search.lattice`) and is compiled with ``@njit(cache=True, nogil=True)`` (no fastmath): the
 kernels release the GIL, so the searches of a merge cycle run side by side on threads.

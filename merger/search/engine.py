@@ -284,6 +284,18 @@ def _wide(problem):
     return replace(problem, window_m=wide, refine=False)
 
 
+def _ring(problem):
+    """The guard's wider problem, its window, its searcher and the translations of its ring outside the
+    problem's window (in the translation order); None without a window or a wider one."""
+    k = problem.window_cells
+    big = _wide(problem)
+    kb = big.window_cells
+    if k == 0 or kb <= k:
+        return None
+    ring = [(a, b) for (a, b) in translation_offsets(kb) if max(abs(a), abs(b)) > k]
+    return big, kb, searcher_for(big), ring
+
+
 def _apart(a, b) -> bool:
     """Whether two grid alignments (θ°, (a, b) cells) are more than one grid step apart. A better
     alignment one step beyond the window's edge is the answer's own peak, cut by the edge."""
@@ -299,14 +311,11 @@ def beyond_window(problem, best_value: float, answer, budget: int = BEYOND_BUDGE
     best-first within ``budget`` bounded regions (0: no limit; then exactly the first in the order θ,
     then the translation order, as :func:`reference_beyond`). What it reports is always a real placement
     scoring above ``best_value``; with the budget spent it may miss one (then None)."""
-    k = problem.window_cells
-    big = _wide(problem)
-    kb = big.window_cells
-    if k == 0 or kb <= k:
+    ringed = _ring(problem)
+    if ringed is None:
         return None
-    s = searcher_for(big)
+    big, kb, s, ring = ringed
     side = 2 * kb + 1
-    ring = [(a, b) for (a, b) in translation_offsets(kb) if max(abs(a), abs(b)) > k]
     th_ans, (a_ans, b_ans) = answer
     excl_a = np.array([not _apart((float(t), (0, 0)), (th_ans, (0, 0))) for t in COARSE], np.bool_)
     excl_t = np.zeros(side * side, np.bool_)
@@ -346,13 +355,10 @@ def reference_search(problem) -> Alignment:
 
 def reference_beyond(problem, best_value: float, answer):
     """:func:`beyond_window` exhaustively (the yardstick)."""
-    k = problem.window_cells
-    big = _wide(problem)
-    kb = big.window_cells
-    if k == 0 or kb <= k:
+    ringed = _ring(problem)
+    if ringed is None:
         return None
-    s = searcher_for(big)
-    ring = [t for t in translation_offsets(kb) if max(abs(t[0]), abs(t[1])) > k]
+    big, _, s, ring = ringed
     out = None
     for th in range(360):
         vals = s.values(float(th), ring)

@@ -79,9 +79,8 @@ def sparse_moving(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, oc
 
 
 @njit(cache=True, nogil=True)
-def exact_counts_sparse(pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, ilo, ihi, jlo, jhi, n,
-                        mstates, res_m, ox, oy, cx, cy, res, r00, r01, r10, r11):
-    """(agr, dis) as :func:`exact_counts`, the moving ROI read point by point (no dense ROI)."""
+def _moving_occupied_term(pocc, n_occ, ref, cols, rows, ai, bi, n):
+    """(agr, dis from the moving side): each occupied lattice point against the reference cell it reads."""
     agr = 0
     dis = 0
     for t in range(n_occ):
@@ -96,6 +95,14 @@ def exact_counts_sparse(pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, 
                 agr += 1
             elif s == 1:
                 dis += 1
+    return agr, dis
+
+
+@njit(cache=True, nogil=True)
+def exact_counts_sparse(pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, ilo, ihi, jlo, jhi, n,
+                        mstates, res_m, ox, oy, cx, cy, res, r00, r01, r10, r11):
+    """(agr, dis) as :func:`exact_counts`, the moving ROI read point by point (no dense ROI)."""
+    agr, dis = _moving_occupied_term(pocc, n_occ, ref, cols, rows, ai, bi, n)
     m = (n - 1) / 2.0
     half = n * res / 2.0
     for q in range(qr.size):
@@ -112,20 +119,7 @@ def exact_counts_sparse(pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, 
 def exact_counts(dense, pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, ilo, ihi, jlo, jhi, n,
                  need_ff):
     """(agr, dis, ff) of the moving ROI ``dense`` against the reference ROI at translation (ai, bi)."""
-    agr = 0
-    dis = 0
-    for t in range(n_occ):  # moving occupied: the reference cell it reads
-        p = pocc[t]
-        i = p // n
-        j = p - i * n
-        r = rows[bi, i]
-        c = cols[ai, j]
-        if r >= 0 and c >= 0:
-            s = ref[r, c]
-            if s == 2:
-                agr += 1
-            elif s == 1:
-                dis += 1
+    agr, dis = _moving_occupied_term(pocc, n_occ, ref, cols, rows, ai, bi, n)
     for q in range(qr.size):  # reference occupied: the lattice points that read it, against moving free
         r = qr[q] - rlo
         c = qc[q] - clo
@@ -150,6 +144,21 @@ def exact_counts(dense, pocc, n_occ, ref, cols, rows, ai, bi, qr, qc, rlo, clo, 
 def _sat(t, r0, r1, c0, c1):
     """Sum of the cells [r0, r1] × [c0, c1] (inclusive) of a summed-area table with a zero border."""
     return t[r1 + 1, c1 + 1] - t[r0, c1 + 1] - t[r1 + 1, c0] + t[r0, c0]
+
+
+@njit(cache=True, nogil=True)
+def _reads(w0, lo, hi, t0, t1, q, cell, n):
+    """Over translations t0..t1 of one axis: the most and fewest lattice lines reading cell q, and the
+    first and last of those lines."""
+    w_hi, w_lo, first, last = 0, 2, n, -1
+    for t in range(t0, t1 + 1):
+        x = w0[t, q]
+        w_hi = max(w_hi, x)
+        w_lo = min(w_lo, x)
+        if x > 0:
+            first = min(first, lo[t, cell])
+            last = max(last, hi[t, cell] - 1)
+    return w_hi, w_lo, first, last
 
 
 @njit(cache=True, nogil=True)
@@ -205,22 +214,8 @@ def region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, 
         rho_q = rho_t
         if exact_w:
             # the lattice rows and columns that read this cell at the box's translations, exactly
-            i0, i1, j0, j1 = n, -1, n, -1
-            wr_hi, wr_lo, wc_hi, wc_lo = 0, 2, 0, 2
-            for b in range(b0, b1 + 1):
-                x = wr0[b, q]
-                wr_hi = max(wr_hi, x)
-                wr_lo = min(wr_lo, x)
-                if x > 0:
-                    i0 = min(i0, ilo[b, rr - lo_r])
-                    i1 = max(i1, ihi[b, rr - lo_r] - 1)
-            for a in range(a0, a1 + 1):
-                x = wc0[a, q]
-                wc_hi = max(wc_hi, x)
-                wc_lo = min(wc_lo, x)
-                if x > 0:
-                    j0 = min(j0, jlo[a, cc - lo_c])
-                    j1 = max(j1, jhi[a, cc - lo_c] - 1)
+            wr_hi, wr_lo, i0, i1 = _reads(wr0, ilo, ihi, b0, b1, q, rr - lo_r, n)
+            wc_hi, wc_lo, j0, j1 = _reads(wc0, jlo, jhi, a0, a1, q, cc - lo_c, n)
             w_hi = wr_hi * wc_hi
             w_lo = 1 if wr_lo >= 1 and wc_lo >= 1 else 0
             if w_hi == 0:
@@ -356,23 +351,11 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     box = np.empty(4, np.int64)
     # the first regions: single angles with bounds given (init_bounds, Lemma 6) or sectors of sector0
     # angles × the whole window
-    if init_bounds.size == n_ang:
-        for x in range(n_ang):
-            nodes[n_nodes, 0] = x
-            nodes[n_nodes, 1] = x
-            nodes[n_nodes, 2] = 0
-            nodes[n_nodes, 3] = side - 1
-            nodes[n_nodes, 4] = 0
-            nodes[n_nodes, 5] = side - 1
-            nodes[n_nodes, 6] = 0
-            bounds_[n_nodes] = init_bounds[x]
-            size = _heap_push(hv, hi_, size, init_bounds[x], n_nodes)
-            n_nodes += 1
-    s0 = 0 if init_bounds.size != n_ang else n_ang
-    while s0 < n_ang:
-        s1 = min(s0 + sector0, n_ang) - 1
-        if n_nodes >= cap:
-            break
+    # (one region per angle when bounds are given, else sectors of sector0 angles)
+    step = 1 if init_bounds.size == n_ang else sector0
+    s0 = 0
+    while s0 < n_ang and n_nodes < cap:
+        s1 = min(s0 + step, n_ang) - 1
         nodes[n_nodes, 0] = s0
         nodes[n_nodes, 1] = s1
         nodes[n_nodes, 2] = 0
@@ -380,7 +363,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         nodes[n_nodes, 4] = 0
         nodes[n_nodes, 5] = side - 1
         nodes[n_nodes, 6] = 0
-        size = _heap_push(hv, hi_, size, np.inf, n_nodes)
+        first = init_bounds[s0] if step == 1 and init_bounds.size == n_ang else np.inf
+        bounds_[n_nodes] = first
+        size = _heap_push(hv, hi_, size, first, n_nodes)
         n_nodes += 1
         s0 = s1 + 1
     free_ids = np.empty(cap, np.int64)

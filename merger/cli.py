@@ -204,7 +204,9 @@ def cmd_align(args) -> int:
         print(f"score        {al.score:9.3f}       ({al.measure} on the {params.roi_m:g} m ROI; "
               f"agree {al.counts.agree}, disagree {al.counts.disagree})")
         print(f"runner-up    {al.runner_up_deg:9.1f} deg   score {al.runner_up_score:.3f}"
-              + ("   (approximate)" if al.evidence.get("runner_up") != "exact" else ""))
+              + ("" if al.evidence.get("runner_up") == "exact" else
+                 "   (an upper bound: the search's envelope)" if al.evidence.get("runner_up") == "upper_envelope"
+                 else "   (approximate)"))
         verdict = "ACCEPTED" if v.passed else f"REJECTED ({v.reason})"
         print(f"verify       ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
     return 0 if v.passed else 1

@@ -47,12 +47,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000)
     ap.add_argument("--full", type=int, default=20)
+    ap.add_argument("--start", type=int, default=0, help="first seed of the small problems")
     ap.add_argument("--measures", default=",".join(MEASURES), help="comma-separated (default: all three)")
     args = ap.parse_args(argv)
     total = diff = 0
     t_ref = t_fast = 0.0
     for measure in args.measures.split(","):
-        problems = [(f"small {s}", lambda s=s, m=measure: adversarial_problem(s, m, s % 2 == 1)) for s in range(args.n)]
+        problems = [(f"small {s}", lambda s=s, m=measure: adversarial_problem(s, m, s % 2 == 1)) for s in range(args.start, args.start + args.n)]
         problems += [(f"full {s}", lambda s=s, m=measure: full_size(s, m)) for s in range(args.full)]
         d = 0
         for name, make in problems:

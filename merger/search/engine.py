@@ -42,6 +42,7 @@ from .problem import (
 )
 
 COARSE = np.arange(360.0)
+_NO_INIT = (np.zeros((0, 6), np.int64), np.zeros(0))
 SLOT_BYTES = 8 * 2**20  # the moving ROIs kept per search (dense states and occupied points) ...
 MAX_SLOTS = 32  # ... at most this many angles (a search evaluates few angles exactly)
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
@@ -101,13 +102,13 @@ class Searcher:
         return self._asum
 
     def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0, budget: int = 0, init_bounds=None):
+            sector0: int = SECTOR0, budget: int = 0, init=None):
         """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
         ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it."""
         with self.lock:
-            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init_bounds)
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init)
 
-    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init_bounds):
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init):
         p = self.p
         angles = np.asarray(angles, np.float64)
         rot = self._use(angles)
@@ -124,7 +125,7 @@ class Searcher:
                                   angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env, self.hist,
-                                  np.zeros(0) if init_bounds is None else init_bounds, p.occ_x, p.occ_y,
+                                  *(_NO_INIT if init is None else init), p.occ_x, p.occ_y,
                                   self.mark, self.gen)
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
@@ -178,17 +179,23 @@ class Searcher:
             out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n)
         return out
 
+    def _polar(self):
+        """The moving map's polar tables about c_m (cached per map) and their ring width."""
+        p = self.p
+        ring_w = p.res
+        half = float(p.ctx_f[6])
+        n_rings = int(math.ceil(half * math.sqrt(2.0) / ring_w)) + 2
+        tables = caches.moving_side(
+            p.problem.moving, ("polar", tuple(p.ctx_f[1:7]), ring_w, n_rings),
+            lambda: polar_tables(p.cls_sat, p.mstates.shape[0], p.mstates.shape[1], *p.ctx_f[1:6], half, ring_w,
+                                 n_rings))
+        return tables, ring_w
+
     def polar_bounds(self) -> np.ndarray:
         """Rotation only: an upper bound of the value at every whole-degree angle (Lemma 6, polar.py)."""
         p = self.p
         self._use(COARSE)
-        ring_w = p.res
-        half = float(p.ctx_f[6])
-        n_rings = int(math.ceil(half * math.sqrt(2.0) / ring_w)) + 2
-        may, nf = caches.moving_side(
-            p.problem.moving, ("polar", tuple(p.ctx_f[1:7]), ring_w, n_rings),
-            lambda: polar_tables(p.cls_sat, p.mstates.shape[0], p.mstates.shape[1], *p.ctx_f[1:6], half, ring_w,
-                                 n_rings))
+        (may, nf), ring_w = self._polar()
         # the reference ROI's occupied lattice points (each reads one cell; a cell may be read by 1–4)
         rlo, clo = int(p.axes_r[3]), int(p.axes_c[3])
         i0 = p.ilo[p.k, p.qr - rlo]
@@ -206,7 +213,16 @@ class Searcher:
         jj = np.concatenate(jj) if jj else np.zeros(0, np.int64)
         agr, dis = angle_bounds((jj - m) * p.res, (ii - m) * p.res, may, nf, ring_w)
         sx = int(p.tsum[p.k * p.side + p.k])
-        return uppers(p.measure.code, agr, dis, sx, self.angle_sums(), p.n * p.n)
+        return uppers(p.measure.code, agr, dis, sx, sx, self.angle_sums(), p.n * p.n)
+
+    def initial_regions(self):
+        """The first regions of the coarse search with their bounds: rotation only, one per whole degree
+        (Lemma 6); with a window None (sectors: per-box polar bounds were tried, docs/performance-history.md)."""
+        if self.p.k != 0:
+            return None
+        nodes = np.zeros((360, 6), np.int64)
+        nodes[:, 0] = nodes[:, 1] = np.arange(360)
+        return nodes, self.polar_bounds()
 
     def values_at_angles(self, angles, t) -> np.ndarray:
         """Exact values at one translation ``t`` (cells) for each of ``angles``."""
@@ -240,7 +256,7 @@ def fast_search(problem) -> Alignment:
     """The thesis's grid answer by branch and bound (see the module documentation); exact."""
     s = searcher_for(problem)
     # rotation only: every whole-degree angle bounded at once (polar cells), then the best-first search
-    inc, env = s.run(COARSE, init_bounds=s.polar_bounds() if s.p.k == 0 else None)
+    inc, env = s.run(COARSE, init=s.initial_regions())
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
     value, counts = s.exact(float(angles[kf]), *tc)

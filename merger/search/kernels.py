@@ -317,7 +317,7 @@ def _before(v, p, s, iv, ip, is_):
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
-                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_bounds,
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_nodes, init_vals,
                      occ_x, occ_y, mark, gen):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
@@ -339,7 +339,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     geo = np.array([n, res, res_m, mox, moy, mcx, mcy, half])
     rmax = half * math.sqrt(2.0)
     n_slots = slot_angle.size
-    cap = 4096
+    cap = max(4096, 2 * init_nodes.shape[0])
     nodes = np.empty((cap, 7), np.int64)  # angle lo, hi, a0, a1, b0, b1, depth
     hv = np.empty(cap, np.float64)
     hi_ = np.empty(cap, np.int64)
@@ -349,13 +349,18 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     n_bounds = 0
     n_exact = 0
     box = np.empty(4, np.int64)
-    # the first regions: single angles with bounds given (init_bounds, Lemma 6) or sectors of sector0
-    # angles × the whole window
-    # (one region per angle when bounds are given, else sectors of sector0 angles)
-    step = 1 if init_bounds.size == n_ang else sector0
-    s0 = 0
-    while s0 < n_ang and n_nodes < cap:
-        s1 = min(s0 + step, n_ang) - 1
+    # the first regions: given with their bounds (init_nodes, init_vals: Lemma 6), else sectors of
+    # sector0 angles × the whole window
+    for x in range(init_nodes.shape[0]):
+        for z in range(6):
+            nodes[n_nodes, z] = init_nodes[x, z]
+        nodes[n_nodes, 6] = 0
+        bounds_[n_nodes] = init_vals[x]
+        size = _heap_push(hv, hi_, size, init_vals[x], n_nodes)
+        n_nodes += 1
+    s0 = 0 if init_nodes.shape[0] == 0 else n_ang
+    while s0 < n_ang:
+        s1 = min(s0 + sector0, n_ang) - 1
         nodes[n_nodes, 0] = s0
         nodes[n_nodes, 1] = s1
         nodes[n_nodes, 2] = 0
@@ -363,9 +368,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         nodes[n_nodes, 4] = 0
         nodes[n_nodes, 5] = side - 1
         nodes[n_nodes, 6] = 0
-        first = init_bounds[s0] if step == 1 and init_bounds.size == n_ang else np.inf
-        bounds_[n_nodes] = first
-        size = _heap_push(hv, hi_, size, first, n_nodes)
+        size = _heap_push(hv, hi_, size, np.inf, n_nodes)
         n_nodes += 1
         s0 = s1 + 1
     free_ids = np.empty(cap, np.int64)

@@ -75,11 +75,12 @@ def upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
 
 
 @njit(cache=True, nogil=True)
-def uppers(code, agr_hi, dis_lo, sx, sy, n_cells):
-    """:func:`upper_of` per angle: count bounds ``agr_hi``, ``dis_lo`` and ``sy`` per angle, one ``sx``."""
+def uppers(code, agr_hi, dis_lo, sx_lo, sx_hi, sy, n_cells):
+    """:func:`upper_of` per angle: count bounds ``agr_hi``, ``dis_lo`` and ``sy`` per angle, ``sx`` in
+    [sx_lo, sx_hi]."""
     out = np.empty(agr_hi.size)
     for x in range(agr_hi.size):
-        out[x] = upper_of(code, agr_hi[x], dis_lo[x], sx, sx, sy[x], sy[x], n_cells)
+        out[x] = upper_of(code, agr_hi[x], dis_lo[x], sx_lo, sx_hi, sy[x], sy[x], n_cells)
     return out
 
 

@@ -96,8 +96,12 @@ class Searcher:
                 dense = np.empty(p.n * p.n, np.uint8)
                 pocc = np.empty(p.n * p.n, np.int32)
                 for x in range(self._angles.size):
-                    no, nf = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *self._rot[x], dense, pocc)
-                    out[x] = no if p.measure.code == NCC else nf
+                    if p.measure.code == NCC:  # occupied points only: without the dense ROI
+                        self.gen[0] += 1
+                        out[x] = sparse_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *self._rot[x], p.occ_x,
+                                               p.occ_y, self.mark, self.gen[0], pocc)
+                    else:
+                        out[x] = fill_moving(p.mstates, *p.ctx_f[1:6], p.n, p.res, *self._rot[x], dense, pocc)[1]
             self._asum = out
         return self._asum
 

@@ -147,21 +147,6 @@ def _sat(t, r0, r1, c0, c1):
 
 
 @njit(cache=True, nogil=True)
-def _reads(w0, lo, hi, t0, t1, q, cell, n):
-    """Over translations t0..t1 of one axis: the most and fewest lattice lines reading cell q, and the
-    first and last of those lines."""
-    w_hi, w_lo, first, last = 0, 2, n, -1
-    for t in range(t0, t1 + 1):
-        x = w0[t, q]
-        w_hi = max(w_hi, x)
-        w_lo = min(w_lo, x)
-        if x > 0:
-            first = min(first, lo[t, cell])
-            last = max(last, hi[t, cell] - 1)
-    return w_hi, w_lo, first, last
-
-
-@njit(cache=True, nogil=True)
 def region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat, mh, mw,
                  th_mid, half_rad, box, level):
     """(agr_hi, dis_lo) over the angles within ``half_rad`` of ``th_mid`` (degrees) and the box
@@ -213,9 +198,24 @@ def region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, 
         w_lo = 1
         rho_q = rho_t
         if exact_w:
-            # the lattice rows and columns that read this cell at the box's translations, exactly
-            wr_hi, wr_lo, i0, i1 = _reads(wr0, ilo, ihi, b0, b1, q, rr - lo_r, n)
-            wc_hi, wc_lo, j0, j1 = _reads(wc0, jlo, jhi, a0, a1, q, cc - lo_c, n)
+            # the lattice rows and columns that read this cell at the box's translations, exactly (rows and
+            # columns written out: a shared helper made centers on cell centres 1.6–2x slower, measured)
+            i0, i1, j0, j1 = n, -1, n, -1
+            wr_hi, wr_lo, wc_hi, wc_lo = 0, 2, 0, 2
+            for b in range(b0, b1 + 1):
+                x = wr0[b, q]
+                wr_hi = max(wr_hi, x)
+                wr_lo = min(wr_lo, x)
+                if x > 0:
+                    i0 = min(i0, ilo[b, rr - lo_r])
+                    i1 = max(i1, ihi[b, rr - lo_r] - 1)
+            for a in range(a0, a1 + 1):
+                x = wc0[a, q]
+                wc_hi = max(wc_hi, x)
+                wc_lo = min(wc_lo, x)
+                if x > 0:
+                    j0 = min(j0, jlo[a, cc - lo_c])
+                    j1 = max(j1, jhi[a, cc - lo_c] - 1)
             w_hi = wr_hi * wc_hi
             w_lo = 1 if wr_lo >= 1 and wc_lo >= 1 else 0
             if w_hi == 0:

@@ -187,7 +187,7 @@ class MergerSettings:
 
     roi_m: float = 8.0
     measure: str = "similarity"
-    method: str = "fast"  # same answer as "reference" (property-tested), ~100-300x cheaper
+    method: str = "fast"  # same answer as "reference" (property-tested; benchmarks/agree_search.py)
     verification: str = "whole_map"
     nu_min: float = 0.5
     min_support: int = 200

@@ -76,7 +76,6 @@ class Searcher:
         self.mark = np.zeros(n * n, np.int32)  # lattice points seen by sparse_moving, by generation
         self.gen = np.zeros(1, np.int64)
         self.stats = {"bounds": 0, "exact": 0}
-        self.hist = np.zeros(16, np.int64)  # bounds per block level (sectors, then single angles), cells read
         self.lock = threading.RLock()  # one search at a time per searcher (its ROI slots are shared)
 
     def _use(self, angles: np.ndarray):
@@ -128,7 +127,7 @@ class Searcher:
                                   p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
                                   angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
-                                  self.slot_counts, inc, env, self.hist,
+                                  self.slot_counts, inc, env,
                                   *(_NO_INIT if init is None else init), p.occ_x, p.occ_y,
                                   self.mark, self.gen)
         self.stats["bounds"] += int(nb)
@@ -145,7 +144,7 @@ class Searcher:
         ai, bi = a + p.k, b + p.k
         agr, dis, ff = exact_counts(dense, pocc, no, p.ref, p.cols, p.rows, ai, bi, p.qr, p.qc, p.axes_r[3],
                                     p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, True)
-        sx = p.tsum[bi * p.side + ai] if p.measure.code != NCC else _ncc_sx(p, ai, bi)
+        sx = p.tsum[bi * p.side + ai]
         sy = no if p.measure.code == NCC else nf
         return p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n), Counts(int(agr), int(dis), int(ff))
 
@@ -226,7 +225,8 @@ class Searcher:
             return None
         nodes = np.zeros((360, 6), np.int64)
         nodes[:, 0] = nodes[:, 1] = np.arange(360)
-        return nodes, self.polar_bounds()
+        with self.lock:  # selects the coarse angles and fills the per-angle sums: searcher state
+            return nodes, self.polar_bounds()
 
     def values_at_angles(self, angles, t) -> np.ndarray:
         """Exact values at one translation ``t`` (cells) for each of ``angles``."""
@@ -237,10 +237,6 @@ class Searcher:
         for a, b in ts:
             m[(b + self.p.k) * self.p.side + (a + self.p.k)] = True
         return m
-
-
-def _ncc_sx(p: Prepared, ai: int, bi: int) -> int:
-    return int(p.tsum[bi * p.side + ai])
 
 
 def searcher_for(problem, k: int | None = None) -> Searcher:

@@ -317,7 +317,7 @@ def _before(v, p, s, iv, ip, is_):
 def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
-                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, hist, init_nodes, init_vals,
+                     slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, init_nodes, init_vals,
                      occ_x, occ_y, mark, gen):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
@@ -481,8 +481,6 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
                                           mh, mw, th_mid, half_rad, box, level)
             n_bounds += 1
-            hist[level + (LEVELS if clo == chi else 0)] += 1
-            hist[2 * LEVELS] += lvl_start[level + 1] - lvl_start[level]
             sx_lo = 1 << 40
             sx_hi = -1
             if code == NCC or code == BIRK_CARPIN:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -108,7 +109,19 @@ def main(argv=None) -> int:
     missing = [str(f) for f in args.folders if not (f / "runs.jsonl").is_file()]
     if missing:
         ap.error(f"no runs.jsonl in {', '.join(missing)}")
-    s = summarize([r for f in args.folders for r in load(f)])
+    rows = []
+    for folder in args.folders:
+        got = load(folder)
+        if not got:
+            print(f"window_sweep_report: error: {folder}/runs.jsonl holds no finished run", file=sys.stderr)
+            return 2
+        if not all("merger.window_m" in r for r in got):
+            print(f"window_sweep_report: error: {folder}: this sweep did not vary the window (no "
+                  f"merger.window_m column); sweep it with --grid merger.window_m=0,0.5,1.0 "
+                  f"--grid center_error=...", file=sys.stderr)
+            return 2
+        rows += got
+    s = summarize(rows)
     print("\n".join(table(s)))
     if args.png:
         plot(s, args.png)

@@ -10,7 +10,6 @@ written atomically (temporary file, then rename): a reader never sees half a fil
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import signal
 import sys
@@ -222,8 +221,10 @@ def cmd_run(args) -> int:
             print(f"circsim: error: --save-maps: {e}; the run's figures are above", file=sys.stderr)
             failed = True
     if json_out:
+        from . import jsonout
+
         try:
-            write_files({json_out: json.dumps(res.to_dict(), indent=2).encode()})
+            write_files({json_out: jsonout.dumps(res.to_dict(), indent=2).encode()})  # 8.6, not 8.600000000000001
             print(f"metrics:   {json_out}")
         except MapFileError as e:
             print(f"circsim: error: {json_out}: cannot write the metrics JSON ({e}); "

@@ -8,11 +8,12 @@ prints it and exits with 2.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 from merger.mapio import ensure_output_dir, write_files
+
+from . import jsonout
 
 
 def _scenario_args(p) -> None:
@@ -114,7 +115,7 @@ def _offline(scenarios, settings, args) -> int:
             def on_record(rec, sc=sc):
                 bar.set_postfix_str(f"{sc.name} seed {sc.seed} {rec.method} φ={rec.phi_deg:g}")
                 if rec_file:
-                    rec_file.write(json.dumps(rec.to_dict()) + "\n")
+                    rec_file.write(jsonout.dumps(rec.to_dict()) + "\n")
                     rec_file.flush()
 
             def on_maps(phi, grids, sc=sc):
@@ -176,7 +177,7 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
     write_csv([r.to_dict() for r in seed_results], out / "offline_seeds.csv")
     meta = {"command": "circsim " + " ".join(sys.argv[1:]) if sys.argv else "", "settings": asdict(settings),
             "search_method": search, "scenarios": args.scenarios, "seeds": args.seeds, "set": args.set}
-    write_files({out / "offline.json": json.dumps(
+    write_files({out / "offline.json": jsonout.dumps(
         {"meta": meta, "summary": rows, "per_seed": [r.to_dict() for r in seed_results]}, indent=2).encode()})
 
 
@@ -197,7 +198,7 @@ def _calibrate(scenarios, settings, args) -> int:
           f"({cal['correct_at_or_above']} of {cal['correct_best']} right alignments reach it)")
     if args.out:
         write_files({args.out / "ncc_calibration.json":
-                     json.dumps({"calibration": cal, "hypotheses": rows}).encode()})
+                     jsonout.dumps({"calibration": cal, "hypotheses": rows}).encode()})
     return 0
 
 

@@ -490,7 +490,7 @@ def _robots(v) -> RobotsSpec:
     if n < 2:
         raise bad("robots.names", "at least two robots (merging needs two maps)", list(names))
     if "names" in r and n != 3 and "start_angles_deg" not in r:
-        r["start_angles_deg"] = tuple(90.0 + k * 360.0 / n for k in range(n))
+        r["start_angles_deg"] = tuple((90.0 + k * 360.0 / n) % 360.0 for k in range(n))  # in [0, 360)
     r.setdefault("yaw_offsets_deg", (0.0,) * n)
     for key in ("start_angles_deg", "yaw_offsets_deg"):
         if key in r and len(r[key]) != n:

@@ -37,10 +37,14 @@ CONSTRAINTS = """
   `robots.radius_m`.
 - With a rectangular `world.room`: `world.center`, the robots' circle plus their bodies, every pillar and
   object lie inside the room; no pillar or object stands on a robot's start. `world.room` is either
-  `size_m` (and `center`, default `world.center`) or `walls`, not both.
+  `size_m` (and `center`: the room is centred on `world.center` unless given) or `walls`, not both.
 - `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
   `magnitude_m` for those robots).
 """
+
+
+# Defaults that follow another key: the table says which (the default scenario's value would mislead).
+DERIVED_DEFAULTS = {"world.room.center": "(`world.center`)"}
 
 
 def _default(defaults, path: list[str]):
@@ -123,6 +127,6 @@ def scenario_reference() -> str:
         else:
             _rows(schema, prefix, defaults, rows)
         parts.append(f"\n## {title}\n\n| key | default | expected |\n|---|---|---|\n")
-        parts.append("".join(f"| `{k}` | {_cell(d)} | {e} |\n" for k, d, e in rows))
+        parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
     parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS))
     return "".join(parts)

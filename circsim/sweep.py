@@ -42,6 +42,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import jsonout
 from .events import Observer
 from .scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
 
@@ -493,7 +494,7 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
                     if f is None:
                         write_sweep_identity(out, tasks)
                         f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
-                    f.write(json.dumps(row) + "\n")
+                    f.write(jsonout.dumps(row) + "\n")  # floats to 12 significant digits
                     f.flush()
                     written += 1
                     if on_row:
@@ -576,7 +577,7 @@ def write_csv(rows: list[dict], path: Path) -> None:
     if rows:
         w = csv.DictWriter(f, fieldnames=_columns(rows), restval="")
         w.writeheader()
-        for r in rows:
+        for r in jsonout.rounded(rows):
             w.writerow({k: ("" if v is None else json.dumps(v) if isinstance(v, list | dict) else v)
                         for k, v in r.items()})
     write_files({path: f.getvalue().encode()})  # atomic: a reader never sees half a table
@@ -607,24 +608,30 @@ def _cm(v):
 
 
 def format_summary(summary: list[dict], axes: list[Axis]) -> str:
+    """The summary as a text table: one row per grid combination, every column under its header
+    (right-aligned, as wide as its widest cell). Medians over seeds with [q1–q3]; "—" where no run
+    had a value (e.g. no robot merged)."""
     def f(v, fmt="{:.1f}"):
         return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.format(v)
 
-    keys = [a.key for a in axes]
-    head = "  ".join(f"{k:>24}" for k in keys) + (
-        f"  {'runs':>4} {'merged':>6} {'first merge s':>17} {'arc deg':>17} {'false':>5} "
-        f"{'rej.corr. rate':>17} {'top err°':>8} {'top err cm':>10} {'180° prop/acc':>13} {'cycle ms':>8} "
-        f"{'consensus s':>17}")
-    lines = [head]
-    for s in summary:
-        def iqr(m, fmt="{:.1f}", s=s):
-            return f"{f(s[m + '.median'], fmt)} [{f(s[m + '.q1'], fmt)}–{f(s[m + '.q3'], fmt)}]"
-        lines.append("  ".join(f"{json.dumps(s[k]):>24}" for k in keys) + (
-            f"  {s['runs']:>4} {s['all_merged_frac']:>6.0%} {iqr('first_merge_s.mean'):>17} "
-            f"{iqr('first_merge_arc_deg.mean'):>17} {s['false_merges.total']:>5} "
-            f"{iqr('rejected_correct_rate', '{:.2f}'):>17} {f(s['top_error_deg.median.median']):>8} "
-            f"{f(_cm(s.get('top_translation_error_m.median.median'))):>10} "
-            f"{s['near_180_proposed.total']:>7}/{s['near_180_accepted.total']:<5} "
-            f"{f(s['merge_cycle_ms.median.median'], '{:.0f}'):>8} "
-            f"{iqr('consensus_s') + ' ' + format(s['consensus_frac'], '.0%'):>17}"))
-    return "\n".join(lines)
+    def iqr(s, m, fmt="{:.1f}"):
+        return f"{f(s[m + '.median'], fmt)} [{f(s[m + '.q1'], fmt)}–{f(s[m + '.q3'], fmt)}]"
+
+    columns = [(a.key, lambda s, k=a.key: json.dumps(s[k])) for a in axes] + [
+        ("runs", lambda s: str(s["runs"])),
+        ("all merged", lambda s: f"{s['all_merged_frac']:.0%}"),
+        ("first merge s", lambda s: iqr(s, "first_merge_s.mean")),
+        ("arc deg", lambda s: iqr(s, "first_merge_arc_deg.mean")),
+        ("false merges", lambda s: str(s["false_merges.total"])),
+        ("rej.-correct rate", lambda s: iqr(s, "rejected_correct_rate", "{:.2f}")),
+        ("top err deg", lambda s: f(s["top_error_deg.median.median"])),
+        ("top err cm", lambda s: f(_cm(s.get("top_translation_error_m.median.median")))),
+        ("180° prop/acc", lambda s: f"{s['near_180_proposed.total']}/{s['near_180_accepted.total']}"),
+        ("cycle ms", lambda s: f(s["merge_cycle_ms.median.median"], "{:.0f}")),
+        ("consensus s", lambda s: iqr(s, "consensus_s")),
+        ("consensus runs", lambda s: f"{s['consensus_frac']:.0%}"),
+    ]
+    cells = [[fmt(s) for _, fmt in columns] for s in summary]
+    widths = [max([len(head)] + [len(row[i]) for row in cells]) for i, (head, _) in enumerate(columns)]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True))
+                     for row in [[head for head, _ in columns], *cells])

@@ -1,0 +1,44 @@
+"""benchmarks/window_sweep_report.py: the center error × window table, and a clear refusal of other sweeps."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "window_sweep_report.py"
+
+
+def report():
+    spec = importlib.util.spec_from_file_location("window_sweep_report", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def write_rows(folder: Path, rows: list[dict]) -> Path:
+    folder.mkdir()
+    (folder / "runs.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return folder
+
+
+ROW = {"scenario": "scene1", "seed": 1, "center_error.magnitude_m": 0.0, "first_merge_arc_deg.Lyon": 15.0,
+       "first_merge_arc_deg.mean": 15.0, "false_merges": 0, "near_180_accepted": 0, "near_180_chosen": 0,
+       "final_translation_error_m.max": 0.02, "merge_cycle_ms.median": 50.0, "realtime_factor": 8.0}
+
+
+def test_a_sweep_without_the_window_is_one_line_exit_2(tmp_path, capsys):
+    folder = write_rows(tmp_path / "latency", [ROW])
+    assert report().main([str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(folder) in err and "merger.window_m" in err, err
+
+
+def test_an_empty_sweep_is_one_line_exit_2(tmp_path, capsys):
+    assert report().main([str(write_rows(tmp_path / "empty", []))]) == 2
+    assert "no finished run" in capsys.readouterr().err
+
+
+def test_a_window_sweep_gives_its_table(tmp_path, capsys):
+    rows = [{**ROW, "merger.window_m": w, "center_error.magnitude_m": e} for w in (0.0, 0.5) for e in (0.0, 0.25)]
+    assert report().main([str(write_rows(tmp_path / "window", rows))]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("| scene | W (m) | center error (m) |") and "| scene1 | 0.5 | 0.25 | 1/1 |" in out

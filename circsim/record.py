@@ -71,7 +71,6 @@ from __future__ import annotations
 
 import functools
 import itertools
-import json
 import math
 import os
 import re
@@ -775,4 +774,7 @@ def _scenario_dict(sc) -> dict:
 
 
 def _json_block(d) -> str:
-    return "```json\n" + json.dumps(d, indent=2, default=str) + "\n```\n"
+    """``d`` as a Markdown JSON block, its floats written as in the run's JSON file (:mod:`circsim.jsonout`)."""
+    from . import jsonout
+
+    return "```json\n" + jsonout.dumps(d, indent=2, default=str) + "\n```\n"

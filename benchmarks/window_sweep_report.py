@@ -88,6 +88,12 @@ def plot(s: dict, path: Path) -> None:
             axes[0][j].plot(xs, [100 * s[k]["merged"] / s[k]["robot_runs"] for k in ks], "o-", label=f"W = {w:g} m")
             axes[1][j].plot(xs, [s[k]["arc_median"] if s[k]["arc_median"] is not None else float("nan")
                                  for k in ks], "o-", label=f"W = {w:g} m")
+        errors = sorted({k[2] for k in s if k[0] == scene})
+        arcs = [c["arc_median"] for k, c in s.items() if k[0] == scene and c["arc_median"] is not None]
+        axes[0][j].set_ylim(-3, 105)  # plain ranges: percentages on [0, 100], arcs from 0
+        axes[1][j].set_ylim(0, 1.15 * max(arcs) if arcs else 1.0)
+        for ax in (axes[0][j], axes[1][j]):
+            ax.set_xticks(errors, [f"{e:g}" for e in errors])  # ticks at the swept errors
         axes[0][j].set_title(scene)
         axes[0][j].set_ylabel("robot-runs merged correctly (%)")
         axes[0][j].axhline(95, color="grey", lw=0.8, ls="--")

@@ -39,6 +39,8 @@ def test_an_empty_sweep_is_one_line_exit_2(tmp_path, capsys):
 
 def test_a_window_sweep_gives_its_table(tmp_path, capsys):
     rows = [{**ROW, "merger.window_m": w, "center_error.magnitude_m": e} for w in (0.0, 0.5) for e in (0.0, 0.25)]
-    assert report().main([str(write_rows(tmp_path / "window", rows))]) == 0
+    png = tmp_path / "window.png"
+    assert report().main([str(write_rows(tmp_path / "window", rows)), "--png", str(png)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"
     out = capsys.readouterr().out
     assert out.startswith("| scene | W (m) | center error (m) |") and "| scene1 | 0.5 | 0.25 | 1/1 |" in out

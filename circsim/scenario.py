@@ -25,7 +25,7 @@ import numpy as np
 import yaml
 
 from merger.cli import MAX_ROI_M
-from merger.mapio import load_yaml, one_line
+from merger.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
 from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
@@ -279,9 +279,11 @@ def load_scenario(path) -> Scenario:
     path = Path(path)
     label = path.name
     try:
-        data = load_yaml(path.read_text())
+        data = load_yaml(read_input(path, MAX_YAML_BYTES, "scenario file").decode("utf-8"))
     except OSError as e:
         raise ScenarioError(f"{label}: cannot read file ({e.strerror or e})") from None
+    except InputLimitError as e:
+        raise ScenarioError(str(e)) from None
     except UnicodeDecodeError:
         raise ScenarioError(f"{label}: not a text file (expected a YAML scenario)") from None
     except yaml.YAMLError as e:

@@ -229,6 +229,7 @@ def cmd_sweep(args) -> int:
         check_dask,
         execute,
         format_summary,
+        lock_out,
         parse_grid,
         plan,
         prepare_out,
@@ -246,6 +247,7 @@ def cmd_sweep(args) -> int:
     tasks = plan(base, axes, args.seeds)
     if args.out:
         ensure_output_dir(args.out, "--out")
+    lock = lock_out(args.out)  # noqa: F841 - held until the process ends: one sweep writes a folder
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     begin_work()
     if base.merger.method == "reference" and todo and not args.quiet:

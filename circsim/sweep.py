@@ -42,6 +42,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from merger.mapio import load_yaml
+
 from .events import Observer
 from .scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
 
@@ -99,8 +101,8 @@ def parse_grid(specs: Iterable[str]) -> list[Axis]:
         for item in text.split(","):
             texts.append(item.strip())
             try:
-                v = yaml.safe_load(item)
-            except yaml.YAMLError:
+                v = load_yaml(item)  # as --set parses values (YAML 1.2 numbers: 1e-1 is a number)
+            except (yaml.YAMLError, ValueError, TypeError, RecursionError):
                 raise SweepError(f"--grid {key}: value {item!r} is not valid YAML") from None
             if v is None:
                 raise SweepError(f"--grid {key}: empty value in {text!r}; expected V1,V2,...")
@@ -268,15 +270,41 @@ def _worst_teammate(errors: dict | None, robot: str) -> float | None:
 
 # --- the row store ---------------------------------------------------------------------------------
 def read_rows(path: Path) -> list[dict]:
-    """Rows of a runs.jsonl; a torn last line (killed while writing) is ignored."""
+    """Rows of a runs.jsonl; a torn line (a sweep killed while writing it) is ignored. A line that is JSON
+    but not a run's row (an object with its ``run_key``) is refused: SweepError naming the file and line."""
     rows = []
     if path.exists():
-        for line in path.read_text().splitlines():
+        for i, raw in enumerate(path.read_bytes().splitlines(), 1):
             try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:
+                row = json.loads(raw)
+            except (json.JSONDecodeError, UnicodeDecodeError):
                 continue
+            if not (isinstance(row, dict) and isinstance(row.get("run_key"), str)):
+                text = raw.decode("utf-8", "replace")
+                raise SweepError(f"{path}: line {i}: expected a run's row (a JSON object with its run_key), got "
+                                 f"{text[:60]!r}{'...' if len(text) > 60 else ''}; remove the line, or start "
+                                 "again with --overwrite")
+            rows.append(row)
     return rows
+
+
+LOCK_FILE = ".sweep.lock"
+
+
+def lock_out(out: Path):
+    """Hold an exclusive lock on ``out`` for the life of this process (the returned file object): a second
+    sweep writing into the same folder would interleave its rows with this one's. SweepError if another
+    sweep holds it."""
+    import fcntl
+
+    f = open(out / LOCK_FILE, "a+")  # noqa: SIM115 - held until the process ends
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        raise SweepError(f"--out {out}: another sweep is writing there (it holds {out / LOCK_FILE}); wait for "
+                         "it to finish, or use another --out") from None
+    return f
 
 
 SWEEP_JSON = "sweep.json"
@@ -490,11 +518,15 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
                     bar.write(f"circsim: run {dict(task.grid)} seed {task.seed} failed: "
                               f"{error.splitlines()[-1]}", file=sys.stderr)
                 elif not row.get("interrupted"):
-                    if f is None:
-                        write_sweep_identity(out, tasks)
-                        f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
-                    f.write(json.dumps(row) + "\n")
-                    f.flush()
+                    try:
+                        if f is None:
+                            write_sweep_identity(out, tasks)
+                            f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
+                        f.write(json.dumps(row) + "\n")
+                        f.flush()
+                    except OSError as e:  # a full disk: the rows already written stay; --resume continues
+                        raise SweepError(f"{out / RUNS_JSONL}: cannot write a run's row ({e.strerror or e}); "
+                                         f"{written} rows of this sweep were written before") from None
                     written += 1
                     if on_row:
                         on_row(row)

@@ -441,8 +441,8 @@ def map_paths(path, image_suffix: str = ".pgm") -> tuple[Path, Path]:
 
 
 def check_outputs(outputs: dict, inputs: dict | None = None) -> None:
-    """Refuse, before any work, outputs that would destroy data: ``outputs`` and ``inputs`` map paths to the
-    option or file that names them. An output may not be an input (or its image), another output, a
+    """Refuse, before any work, outputs that would destroy data: ``outputs`` (a mapping or (path, what)
+    pairs) and ``inputs`` map paths to the option or file that names them. An output may not be an input (or its image), another output, a
     folder, a symbolic link or another non-regular file (device, FIFO, socket); :class:`MapFileError`
     naming both otherwise. (Outputs are then written by :func:`write_files`: temporary file, rename.)"""
     import stat
@@ -452,7 +452,7 @@ def check_outputs(outputs: dict, inputs: dict | None = None) -> None:
 
     ins = {key(p): (p, what) for p, what in (inputs or {}).items()}
     seen: dict[str, tuple] = {}
-    for p, what in outputs.items():
+    for p, what in (outputs.items() if isinstance(outputs, dict) else outputs):
         p = Path(p)
         if p.name in ("", ".", ".."):
             raise MapFileError(f"{what}: expected a file name, got {str(p)!r}")

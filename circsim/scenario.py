@@ -475,7 +475,7 @@ def check_geometry(world: WorldSpec, robots: RobotsSpec) -> None:
         if blocked:
             raise Invalid(path, f"expected clear of the robots' circle (radius {robots.radius_m:g} m about "
                                 f"world.center, bodies {robots.body_radius_m:g} m): center {list(c)} reaching "
-                                f"{r:.2f} m stands on {blocked}, and the robots drive along it without avoiding "
+                                f"{r:.2f} m stands on {blocked}, and they do not avoid "
                                 "obstacles; move it, or change robots.radius_m")
 
 

@@ -208,11 +208,11 @@ def cmd_run(args) -> int:
                          "(with --out DIR --save-maps for the maps); `circsim run` drives the robots online")
     rrd = args.rrd or (Path(sc.output.rrd) if sc.output.rrd else None)
     json_out = args.json or (Path(sc.output.json) if sc.output.json else None)
-    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps)
     if rrd:
         _writable(rrd, "recording")
     if json_out:
         _writable(json_out, "metrics JSON")
+    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps)
     if args.save_maps:
         ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
@@ -229,7 +229,14 @@ def cmd_run(args) -> int:
                                  merged_log_period_s=sc.output.merged_log_period_s)
         observers.append(recorder)
     begin_work()
-    res = Simulation(sc, observers).run()
+    try:
+        res = Simulation(sc, observers).run()
+    except ValueError as e:
+        if recorder is not None and recorder.stuck:  # nothing was run yet; rerun's exit hook would block forever
+            print(f"circsim: error: {e}", file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            os._exit(2)
+        raise
     rrd_error = recorder.write_error if recorder else None
     if rrd and not rrd_error:
         res.outputs["rrd"] = str(rrd)

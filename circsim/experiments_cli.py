@@ -223,20 +223,8 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import begin_work, interrupted_code, load_with_overrides, show_progress
-    from .sweep import (
-        SweepError,
-        check_dask,
-        execute,
-        format_summary,
-        lock_out,
-        parse_grid,
-        plan,
-        prepare_out,
-        summarize,
-        sweep_rows,
-        write_tables,
-    )
+    from .cli import load_with_overrides
+    from .sweep import SweepError, check_dask, lock_out, parse_grid, plan
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
@@ -247,7 +235,14 @@ def cmd_sweep(args) -> int:
     tasks = plan(base, axes, args.seeds)
     if args.out:
         ensure_output_dir(args.out, "--out")
-    lock = lock_out(args.out)  # noqa: F841 - held until the process ends: one sweep writes a folder
+    with lock_out(args.out):  # one sweep writes a folder at a time
+        return _sweep(args, base, axes, tasks)
+
+
+def _sweep(args, base, axes, tasks) -> int:
+    from .cli import begin_work, interrupted_code, show_progress
+    from .sweep import execute, format_summary, prepare_out, summarize, sweep_rows, write_tables
+
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     begin_work()
     if base.merger.method == "reference" and todo and not args.quiet:

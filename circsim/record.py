@@ -112,6 +112,29 @@ class RecordingError(ValueError):
     """The recording cannot be written (one line naming the file)."""
 
 
+ATTACH_TIMEOUT_S = 10.0  # setting the file sink takes milliseconds; rerun 0.41 blocks forever when its writer dies
+
+
+def _within(fn, timeout_s: float) -> None:
+    """Run ``fn`` in a daemon thread; re-raise its exception, or TimeoutError when it has not returned after
+    ``timeout_s`` (it is left blocked: the caller must not wait for it again, nor for rerun at exit)."""
+    box: dict = {}
+
+    def run():
+        try:
+            fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    t = threading.Thread(target=run, name="rerun-attach", daemon=True)
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():
+        raise TimeoutError
+    if "error" in box:
+        raise box["error"]
+
+
 class RerunRecorder(Observer):
     """Records a run with rerun: live viewer, ``.rrd`` file, or both.
 
@@ -148,6 +171,7 @@ class RerunRecorder(Observer):
             raise ValueError(f"scan_log_hz must be > 0, got {scan_log_hz}")
         self.path = None if path is None else str(path)
         self.part: str | None = None  # the temporary file the recording is written to, renamed at the end
+        self.stuck = False  # rerun blocked for good while starting the file (the process must not wait for it)
         self.write_error: str | None = None  # why the recording could not be completed (one line), if so
         self.spawn = spawn
         self.scan_period_s = 1.0 / float(scan_log_hz)
@@ -358,13 +382,24 @@ class RerunRecorder(Observer):
             target = Path(self.path)
             fd, self.part = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part.rrd", dir=target.parent)
             os.close(fd)
-        try:
+        def attach():
             if self.spawn and self.path:
                 rec.set_sinks(rr.FileSink(self.part), rr.GrpcSink(url), default_blueprint=bp)
             elif self.path:
                 rec.save(self.part, default_blueprint=bp)
             else:
                 rec.connect_grpc(url, default_blueprint=bp)
+
+        try:
+            _within(attach, ATTACH_TIMEOUT_S)
+        except TimeoutError:  # rerun's file writer died while the sink was set (a full disk): it never returns
+            self.stuck = True
+            self.rec = None
+            if self.part:
+                os.unlink(self.part)
+                self.part = None
+            raise RecordingError(f"{self.path}: cannot write the recording (rerun's file writer stopped; a full "
+                                 "disk?)") from None
         except RuntimeError as e:  # e.g. "Failed to write: No space left on device"
             if self.part:
                 os.unlink(self.part)

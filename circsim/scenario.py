@@ -24,9 +24,9 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
-from merger.cli import MAX_ROI_M
+from merger.cli import MAX_ROI_M, MIN_ROI_CELLS
 from merger.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
-from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
+from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
 from .network import NetworkConfig
@@ -402,6 +402,11 @@ def _build(data, source: str) -> Scenario:
         raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
                   f"slam.resolution_m = {cells:.0f})", slam.size_m)
     merger = _MERGER(data.get("merger"), "merger")
+    roi_cells = merger.roi_m / slam.resolution_m
+    if not MIN_ROI_CELLS <= roi_cells <= MAX_ROI_CELLS:
+        raise bad("merger.roi_m", f"a side of {MIN_ROI_CELLS} to {MAX_ROI_CELLS} cells of slam.resolution_m "
+                  f"({slam.resolution_m:g} m): {MIN_ROI_CELLS * slam.resolution_m:g} to "
+                  f"{min(MAX_ROI_M, MAX_ROI_CELLS * slam.resolution_m):g} m", merger.roi_m)
     top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
     if merger.window_m > top + 1e-12:
         raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "

@@ -12,6 +12,7 @@ import math
 import re
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -22,8 +23,8 @@ from .mapio import (
     MAX_MAP_SIDE,
     MIN_RESOLUTION_M,
     MapFileError,
-    check_outputs,
     centers_yaml,
+    check_outputs,
     ensure_output_dir,
     load_map,
     map_files,
@@ -39,6 +40,7 @@ from .transform import canvas, paste, rotation, warp_grid
 from .verify import verify
 
 MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
+MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -113,6 +115,10 @@ def check_roi(params, resolution: float, path) -> None:
         check_roi_cells(params.roi_m, resolution)
     except ValueError as e:
         raise UsageError(f"--roi: {e} (cells of {path})") from None
+    if params.roi_m / resolution < MIN_ROI_CELLS:
+        raise UsageError(f"--roi: {params.roi_m:g} m is {params.roi_m / resolution:.3g} cells a side at "
+                         f"{resolution:g} m per cell ({path}): expected at least {MIN_ROI_CELLS} cells, "
+                         f"{MIN_ROI_CELLS * resolution:g} m")
 
 
 def add_merge_options(p: argparse.ArgumentParser) -> None:
@@ -290,10 +296,7 @@ def check_map_centers(paths, grids, centers, roi_m: float) -> None:
     """Each map's center near its map (:func:`check_center`), and --roi within the cell limit."""
     for i, (p, g, c) in enumerate(zip(paths, grids, centers, strict=True)):
         check_center(g, c, roi_m, "--center" if len(set(centers)) == 1 else f"--center (map {i + 1})", p)
-    try:
-        check_roi_cells(roi_m, grids[0].resolution)
-    except ValueError as e:
-        raise UsageError(f"--roi: {e} (cells of {paths[0]})") from None
+    check_roi(SimpleNamespace(roi_m=roi_m), grids[0].resolution, paths[0])
 
 
 def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],

@@ -20,7 +20,6 @@ import numpy as np
 from ..grid import OCCUPIED_S
 from .problem import fine_angles, wrap_deg
 
-
 REMAP_MAX_COLS = 32_000  # cv2.remap asserts fewer than SHRT_MAX (32,767) columns and rows in its maps
 
 

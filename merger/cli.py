@@ -12,7 +12,6 @@ import math
 import re
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -109,14 +108,15 @@ def check_center(grid, center, roi_m: float, what: str, path) -> None:
                          "the map, in its frame")
 
 
-def check_roi(params, resolution: float, path) -> None:
-    """--roi in cells of the maps' resolution must fit the search's limit (:data:`MAX_ROI_CELLS`)."""
+def check_roi(roi_m: float, resolution: float, path) -> None:
+    """--roi in cells of the maps' resolution: at least :data:`MIN_ROI_CELLS`, at most the search's limit
+    (:data:`MAX_ROI_CELLS`)."""
     try:
-        check_roi_cells(params.roi_m, resolution)
+        check_roi_cells(roi_m, resolution)
     except ValueError as e:
         raise UsageError(f"--roi: {e} (cells of {path})") from None
-    if params.roi_m / resolution < MIN_ROI_CELLS:
-        raise UsageError(f"--roi: {params.roi_m:g} m is {params.roi_m / resolution:.3g} cells a side at "
+    if roi_m / resolution < MIN_ROI_CELLS:
+        raise UsageError(f"--roi: {roi_m:g} m is {roi_m / resolution:.3g} cells a side at "
                          f"{resolution:g} m per cell ({path}): expected at least {MIN_ROI_CELLS} cells, "
                          f"{MIN_ROI_CELLS * resolution:g} m")
 
@@ -221,7 +221,7 @@ def cmd_align(args) -> int:
     c_ref = parse_xy(args.center, "--center")
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
     ref, mov = load_map(args.ref), load_map(args.moving)
-    check_roi(params, ref.resolution, args.ref)
+    check_roi(params.roi_m, ref.resolution, args.ref)
     check_center(ref, c_ref, params.roi_m, "--center", args.ref)
     check_center(mov, c_mov, params.roi_m, "--center-moving" if args.center_moving else "--center", args.moving)
     al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
@@ -296,7 +296,7 @@ def check_map_centers(paths, grids, centers, roi_m: float) -> None:
     """Each map's center near its map (:func:`check_center`), and --roi within the cell limit."""
     for i, (p, g, c) in enumerate(zip(paths, grids, centers, strict=True)):
         check_center(g, c, roi_m, "--center" if len(set(centers)) == 1 else f"--center (map {i + 1})", p)
-    check_roi(SimpleNamespace(roi_m=roi_m), grids[0].resolution, paths[0])
+    check_roi(roi_m, grids[0].resolution, paths[0])
 
 
 def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],
@@ -479,7 +479,7 @@ def cmd_demo(args) -> int:
     check_outputs(outputs, {q: "--real" for q in map_input_paths(args.real)} if args.real else {})
     if args.real:
         world = load_map(args.real)
-        check_roi(params, world.resolution, args.real)
+        check_roi(params.roi_m, world.resolution, args.real)
         free_c, clearance = widest_free_point(world)
         if args.real_center:
             center = parse_xy(args.real_center, "--real-center")

@@ -44,10 +44,17 @@ _PGM_RESOLUTION = re.compile(rb"#[^\n]*?([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*
 _CONTROL = re.compile("[\x00-\x1f\x7f\x85\u2028\u2029]")
 
 
+MAX_MESSAGE_CHARS = 2000  # an error message echoing a user's value is cut here
+
+
 def one_line(text: str) -> str:
     """``text`` with line breaks and other control characters escaped (``\\n``): a user's file name or
-    value echoed in an error message cannot break it over lines."""
-    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], str(text))
+    value echoed in an error message cannot break it over lines; cut after :data:`MAX_MESSAGE_CHARS`
+    characters (a value of a megabyte is not echoed whole)."""
+    text = str(text)
+    if len(text) > MAX_MESSAGE_CHARS:
+        text = f"{text[:MAX_MESSAGE_CHARS]}... ({len(text)} characters)"
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
 
 
 class MapFileError(ValueError):

@@ -254,6 +254,7 @@ BASE = load_scenario(bundled_scenarios()["scene1"])
     (["world.pillars=[{center: [0, -1.6], radius: 0.2}]"], "world.pillars[0]: expected clear of the robots' circle"),
     (["world.objects=[{type: box, center: [1.6, 0], size_m: [0.3, 0.3]}]"],
      "world.objects[0]: expected clear of the robots' circle"),
+    (["merger.roi_m=0.1", "merger.window_m=0"], "merger.roi_m: expected a side of 10 to 4000 cells"),
 ])
 def test_nonsense_scenarios_are_refused_in_one_line(sets, needle):
     with pytest.raises(ScenarioError) as e:
@@ -306,6 +307,8 @@ def test_refused_map_inputs_cost_no_memory_and_never_hang(tmp_path):
         (["align", "/dev/zero", office, "--center", "0,0"], "/dev/zero", "a device"),
         (["align", office, office, "--center", "1e308,0"], "--center", "outside"),
         (["align", office, office, "--center", "1e7,0"], "--center", "office.yaml"),
+        (["align", office, office, "--center", "0,0", "--roi", "1e-9", "--window", "0"], "--roi",
+         "at least 10 cells"),
         (["demo", "--center-error", "1e308", "-o", tmp_path / "d"], "--center-error", "[0, 4]"),
         (["demo", "--radius", "1e308", "-o", tmp_path / "d"], "--radius", "(0, 2.4]"),
         (["demo", "--seed", "-1", "-o", tmp_path / "d"], "--seed", ">= 0"),
@@ -370,3 +373,12 @@ def test_a_full_disk_under_rrd_is_an_error_and_keeps_the_previous_recording(tmp_
     else:
         assert fsize < 100_000 and not js.exists()  # refused at the start: nothing was computed
     assert not list(tmp_path.glob(".*part*"))
+
+
+def test_a_huge_value_is_not_echoed_whole(tmp_path):
+    """An error echoing a user's value is cut (a megabyte-long `image:` printed whole before)."""
+    (tmp_path / "m.yaml").write_text("image: [" + ", ".join(["x"] * 200_000) + "]\nresolution: 0.05\n"
+                                     "origin: [0, 0, 0]\n")
+    with pytest.raises(MapFileError) as e:
+        load_map(tmp_path / "m.yaml")
+    assert "key 'image'" in str(e.value) and len(str(e.value)) < 2100 and "characters)" in str(e.value)

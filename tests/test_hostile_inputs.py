@@ -382,3 +382,17 @@ def test_a_huge_value_is_not_echoed_whole(tmp_path):
     with pytest.raises(MapFileError) as e:
         load_map(tmp_path / "m.yaml")
     assert "key 'image'" in str(e.value) and len(str(e.value)) < 2100 and "characters)" in str(e.value)
+
+
+def test_a_fifo_as_a_bag_is_refused_without_blocking(tmp_path):
+    """`merger merge --bag x.mcap` on a FIFO waited forever in the bag reader."""
+    pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
+    from merger.bagio import read_bag_maps
+
+    os.mkfifo(tmp_path / "x.mcap")
+    with pytest.raises(MapFileError, match=r"x\.mcap: expected a ROS bag file .*got a FIFO"):
+        read_bag_maps(tmp_path / "x.mcap", ["/a/map", "/b/map"])
+    (tmp_path / "bag").mkdir()
+    os.mkfifo(tmp_path / "bag" / "bag_0.mcap")
+    with pytest.raises(MapFileError, match=r"bag_0\.mcap: expected a ROS bag file"):
+        read_bag_maps(tmp_path / "bag", ["/a/map", "/b/map"])

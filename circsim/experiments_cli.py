@@ -70,6 +70,10 @@ def cmd_offline(args) -> int:
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
     if args.out:
         ensure_output_dir(args.out, "--out")
+        from merger.mapio import check_outputs
+
+        check_outputs({args.out / n: "--out" for n in ("offline.csv", "offline_seeds.csv", "offline.json",
+                                                       "offline_records.jsonl", "ncc_calibration.json")})
     begin_work()
     if args.calibrate:
         return _calibrate(scenarios, settings, args)
@@ -241,8 +245,17 @@ def cmd_sweep(args) -> int:
 
 def _sweep(args, base, axes, tasks) -> int:
     from .cli import begin_work, interrupted_code, show_progress
-    from .sweep import execute, format_summary, prepare_out, summarize, sweep_rows, write_tables
+    from .sweep import (
+        check_sweep_outputs,
+        execute,
+        format_summary,
+        prepare_out,
+        summarize,
+        sweep_rows,
+        write_tables,
+    )
 
+    check_sweep_outputs(args.out)
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     begin_work()
     if base.merger.method == "reference" and todo and not args.quiet:

@@ -307,6 +307,15 @@ class FolderLock:
         self.close()
 
 
+def check_sweep_outputs(out: Path) -> None:
+    """The files a sweep writes in ``out`` must be regular files or absent (not a FIFO, whose read would
+    block, a device or a link): MapFileError naming the file."""
+    from merger.mapio import check_outputs
+
+    check_outputs({out / n: "--out" for n in (RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV, SWEEP_JSON,
+                                               ERRORS_JSONL, "sweep.png")})
+
+
 def lock_out(out: Path) -> FolderLock:
     """Lock the sweep folder ``out`` against a second sweep writing into it (its rows would interleave
     with this one's: two sweeps gave 12 rows for 6 runs). SweepError if another sweep holds it."""

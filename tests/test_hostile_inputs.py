@@ -396,3 +396,17 @@ def test_a_fifo_as_a_bag_is_refused_without_blocking(tmp_path):
     os.mkfifo(tmp_path / "bag" / "bag_0.mcap")
     with pytest.raises(MapFileError, match=r"bag_0\.mcap: expected a ROS bag file"):
         read_bag_maps(tmp_path / "bag", ["/a/map", "/b/map"])
+
+
+def test_sweep_and_offline_outputs_that_are_special_files_are_refused(tmp_path, capsys):
+    """A FIFO as OUT/runs.jsonl blocked the resume check's read; a link as OUT/offline.json was replaced."""
+    from circsim.cli import main
+
+    (tmp_path / "sw").mkdir()
+    os.mkfifo(tmp_path / "sw" / "runs.jsonl")
+    assert main(["sweep", "scene1", "--seeds", "1", "--out", str(tmp_path / "sw"), "--quiet"]) == 2
+    one_line_error(capsys.readouterr().err, "circsim", "runs.jsonl", "not a regular file")
+    (tmp_path / "off").mkdir()
+    (tmp_path / "off" / "offline.json").symlink_to(tmp_path / "elsewhere.json")
+    assert main(["offline", "scene1", "--out", str(tmp_path / "off"), "--quiet"]) == 2
+    one_line_error(capsys.readouterr().err, "circsim", "offline.json", "symbolic link")

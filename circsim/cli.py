@@ -61,7 +61,14 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="circsim", description="Simulation bench for multi-robot map merging with a common center.")
+    from merger.cli import package_version
+
+    p = _Parser(prog="circsim", description="Simulation bench for multi-robot map merging with a common center.",
+                epilog="Limits (checked before any work; docs/limits.md and `circsim scenarios --reference`): "
+                       "scenario files up to 1 MiB, robots' grids up to 4000 cells a side, 1,000,000 ticks, "
+                       "merger.roi_m up to 100 m. Errors: one line, exit 2; outputs are written to a temporary "
+                       "file and renamed, never over an input or another output.")
+    p.add_argument("--version", action="version", version=f"circsim {package_version()}")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     r = sub.add_parser("run", help="run a scenario and print a summary")
     add_scenario_args(r)
@@ -168,6 +175,26 @@ def _writable(path: Path, what: str) -> None:
         raise UsageError(f"{path}: cannot write the {what} here ({e.strerror or e})") from None
 
 
+def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
+    """Before the run: no output may be the scenario file, another output (``--rrd X --json X``, a
+    ``--json`` inside ``--save-maps`` named like a robot's map), a folder, a link or a special file."""
+    from merger.mapio import CENTERS_FILE, check_outputs, map_paths
+
+    from .savemaps import file_stem
+
+    outputs = []
+    if rrd:
+        outputs.append((rrd, "--rrd"))
+    if json_out:
+        outputs.append((json_out, "--json"))
+    if save_maps:
+        for i, n in enumerate(sc.robots.names):
+            outputs += [(p, "--save-maps") for p in map_paths(save_maps / f"{file_stem(n, i)}.yaml")]
+        outputs.append((save_maps / CENTERS_FILE, "--save-maps"))
+    p = Path(scenario_arg)
+    check_outputs(outputs, {p: "scenario"} if p.is_file() else {})
+
+
 def cmd_run(args) -> int:
     from merger.mapio import MapFileError, ensure_output_dir, write_files
 
@@ -184,6 +211,7 @@ def cmd_run(args) -> int:
         _writable(rrd, "recording")
     if json_out:
         _writable(json_out, "metrics JSON")
+    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps)
     if args.save_maps:
         ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
@@ -192,24 +220,36 @@ def cmd_run(args) -> int:
     saver = MapSaver() if args.save_maps else None
     if saver:
         observers.append(saver)
+    recorder = None
     if rrd or args.spawn:
         from .record import RerunRecorder
 
-        observers.append(RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn,
-                                       scan_log_hz=sc.output.scan_log_hz,
-                                       merged_log_period_s=sc.output.merged_log_period_s))
+        recorder = RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn, scan_log_hz=sc.output.scan_log_hz,
+                                 merged_log_period_s=sc.output.merged_log_period_s)
+        observers.append(recorder)
     begin_work()
-    res = Simulation(sc, observers).run()
-    if rrd:
+    try:
+        res = Simulation(sc, observers).run()
+    except ValueError as e:
+        if recorder is not None and recorder.stuck:  # nothing was run yet; rerun's exit hook would block forever
+            print(f"circsim: error: {e}", file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            os._exit(2)
+        raise
+    rrd_error = recorder.write_error if recorder else None
+    if rrd and not rrd_error:
         res.outputs["rrd"] = str(rrd)
     if json_out:
         res.outputs["json"] = str(json_out)
     if saver:
         res.outputs["maps"] = str(args.save_maps)
     print(summary(res))  # first: whatever happens to the files, the figures are on screen
-    if rrd:
-        print(f"recording: {rrd}   (view it: circsim view {rrd})")
     failed = False
+    if rrd_error:
+        print(f"circsim: error: {rrd_error}; the run's figures are above", file=sys.stderr)
+        failed = True
+    elif rrd:
+        print(f"recording: {rrd}   (view it: circsim view {rrd})")
     if saver:
         try:
             files = saver.files(args.save_maps)
@@ -337,6 +377,9 @@ def _main(argv=None) -> int:
     except KeyboardInterrupt:
         print("circsim: terminated" if _TERMINATED else "circsim: interrupted", file=sys.stderr)
         return 143 if _TERMINATED else 130
+    except BrokenPipeError:  # `circsim scenarios | head -1`: the reader left; not an error (Python docs' way)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
+        return 1
     except Exception as e:
         from .scenario import ScenarioError
 

@@ -71,6 +71,10 @@ def cmd_offline(args) -> int:
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
     if args.out:
         ensure_output_dir(args.out, "--out")
+        from merger.mapio import check_outputs
+
+        check_outputs({args.out / n: "--out" for n in ("offline.csv", "offline_seeds.csv", "offline.json",
+                                                       "offline_records.jsonl", "ncc_calibration.json")})
     begin_work()
     if args.calibrate:
         return _calibrate(scenarios, settings, args)
@@ -224,19 +228,8 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import begin_work, interrupted_code, load_with_overrides, show_progress
-    from .sweep import (
-        SweepError,
-        check_dask,
-        execute,
-        format_summary,
-        parse_grid,
-        plan,
-        prepare_out,
-        summarize,
-        sweep_rows,
-        write_tables,
-    )
+    from .cli import load_with_overrides
+    from .sweep import SweepError, check_dask, lock_out, parse_grid, plan
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
@@ -247,6 +240,23 @@ def cmd_sweep(args) -> int:
     tasks = plan(base, axes, args.seeds)
     if args.out:
         ensure_output_dir(args.out, "--out")
+    with lock_out(args.out):  # one sweep writes a folder at a time
+        return _sweep(args, base, axes, tasks)
+
+
+def _sweep(args, base, axes, tasks) -> int:
+    from .cli import begin_work, interrupted_code, show_progress
+    from .sweep import (
+        check_sweep_outputs,
+        execute,
+        format_summary,
+        prepare_out,
+        summarize,
+        sweep_rows,
+        write_tables,
+    )
+
+    check_sweep_outputs(args.out)
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
     begin_work()
     if base.merger.method == "reference" and todo and not args.quiet:

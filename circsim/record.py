@@ -87,12 +87,14 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
+from merger.mapio import one_line
 from merger.online import resolve_strategy
 from merger.overlay import colours_for, overlay_rgb
 
 from .events import MergeCycle, Observer, RobotTick
 
 APP_ID = "circsim"
+RRD_FOOTER_MAGIC = b"RRF2FOOT"  # the last bytes of a complete .rrd (rerun-sdk 0.41's format)
 RAY_BEAM_STRIDE = 12  # rays: one beam in twelve keeps the fan readable (seen in the viewer)
 CROP_MARGIN_CELLS = 20  # logged maps and overlays: known cells plus 1 m at 5 cm
 SCAN_Z, MAP_Z = 0.03, -0.02  # scans above the maps; local maps stacked below z = 0 so they do not z-fight
@@ -103,6 +105,33 @@ _LEVELS = {"debug": "DEBUG", "info": "INFO", "warn": "WARN", "warning": "WARN", 
 _GREY = (150, 150, 150)
 _PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
             (227, 119, 194), (188, 189, 34), (23, 190, 207)]  # matplotlib tab10 without its grey
+
+
+class RecordingError(ValueError):
+    """The recording cannot be written (one line naming the file)."""
+
+
+ATTACH_TIMEOUT_S = 10.0  # setting the file sink takes milliseconds; rerun 0.41 blocks forever when its writer dies
+
+
+def _within(fn, timeout_s: float) -> None:
+    """Run ``fn`` in a daemon thread; re-raise its exception, or TimeoutError when it has not returned after
+    ``timeout_s`` (it is left blocked: the caller must not wait for it again, nor for rerun at exit)."""
+    box: dict = {}
+
+    def run():
+        try:
+            fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    t = threading.Thread(target=run, name="rerun-attach", daemon=True)
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():
+        raise TimeoutError
+    if "error" in box:
+        raise box["error"]
 
 
 class RerunRecorder(Observer):
@@ -140,6 +169,9 @@ class RerunRecorder(Observer):
         if not scan_log_hz > 0:
             raise ValueError(f"scan_log_hz must be > 0, got {scan_log_hz}")
         self.path = None if path is None else str(path)
+        self.part: str | None = None  # the temporary file the recording is written to, renamed at the end
+        self.stuck = False  # rerun blocked for good while starting the file (the process must not wait for it)
+        self.write_error: str | None = None  # why the recording could not be completed (one line), if so
         self.spawn = spawn
         self.scan_period_s = 1.0 / float(scan_log_hz)
         self.rays_every = int(rays_every)
@@ -307,9 +339,35 @@ class RerunRecorder(Observer):
             except RuntimeError as e:  # e.g. the live viewer was closed: the file sink is unaffected
                 print(f"circsim: rerun: {e}", file=sys.stderr)
             rec.disconnect()
+            self._place_recording()
         finally:
             if main:
                 signal.signal(signal.SIGINT, old)
+
+    def _place_recording(self) -> None:
+        """Rename the finished temporary recording into place, or, when it is incomplete (rerun's file
+        writer failed: a full disk, a quota), delete it, leave whatever was at the path before untouched and
+        set :attr:`write_error`. The footer is what ``rerun rrd verify`` checks first."""
+        part, self.part = self.part, None
+        if part is None:
+            return
+        try:
+            size = os.path.getsize(part)
+            with open(part, "rb") as f:
+                f.seek(max(0, size - 64))
+                complete = RRD_FOOTER_MAGIC in f.read()
+            if not complete:
+                raise OSError(28, "the recording is incomplete (no footer; a full disk?)")
+            mask = os.umask(0)
+            os.umask(mask)
+            os.chmod(part, 0o666 & ~mask)
+            os.replace(part, self.path)
+        except OSError as e:
+            self.write_error = f"{self.path}: cannot write the recording ({e.strerror or e}); nothing replaced"
+            try:
+                os.unlink(part)
+            except OSError:
+                pass
 
     # --- pieces --------------------------------------------------------------------------------------
     def _attach_sinks(self, bp: rrb.Blueprint) -> None:
@@ -317,12 +375,40 @@ class RerunRecorder(Observer):
         url = f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"
         if self.spawn:  # the bundled viewer: rr.spawn alone searches $PATH, which may lack the venv
             rr.spawn(port=VIEWER_PORT, connect=False, recording=rec, executable_path=rerun_executable())
-        if self.spawn and self.path:
-            rec.set_sinks(rr.FileSink(self.path), rr.GrpcSink(url), default_blueprint=bp)
-        elif self.path:
-            rec.save(self.path, default_blueprint=bp)
-        else:
-            rec.connect_grpc(url, default_blueprint=bp)
+        if self.path:  # written to a temporary file beside it, renamed when complete (close)
+            import tempfile
+
+            target = Path(self.path)
+            fd, self.part = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part.rrd", dir=target.parent)
+            os.close(fd)
+        def attach():
+            if self.spawn and self.path:
+                rec.set_sinks(rr.FileSink(self.part), rr.GrpcSink(url), default_blueprint=bp)
+            elif self.path:
+                rec.save(self.part, default_blueprint=bp)
+            else:
+                rec.connect_grpc(url, default_blueprint=bp)
+
+        try:
+            _within(attach, ATTACH_TIMEOUT_S)
+        except TimeoutError:  # rerun's file writer died while the sink was set (a full disk): it never returns
+            self.stuck = True
+            self.rec = None
+            if self.part:
+                os.unlink(self.part)
+                self.part = None
+            raise RecordingError(f"{self.path}: cannot write the recording (rerun's file writer stopped; a full "
+                                 "disk?)") from None
+        except RuntimeError as e:  # e.g. "Failed to write: No space left on device"
+            if self.part:
+                os.unlink(self.part)
+                self.part = None
+            self.rec = None
+            try:
+                rec.disconnect()  # drop what the stream buffered (no warning about it at exit)
+            except RuntimeError:
+                pass
+            raise RecordingError(f"{self.path}: cannot write the recording ({one_line(str(e))})") from None
 
     def _at(self, t: float, step: int) -> None:
         self.step = step

@@ -24,9 +24,9 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
-from merger.cli import MAX_ROI_M
-from merger.mapio import load_yaml, one_line
-from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
+from merger.cli import MAX_ROI_M, MIN_ROI_CELLS
+from merger.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
+from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS
 
 from .laser import LaserConfig
 from .network import NetworkConfig
@@ -52,6 +52,8 @@ Vec2 = tuple[float, float]
 MAX_GRID_CELLS = 4000  # cells on a side of a robot's grid (200 m at 5 cm): 64 MB of log-odds per robot
 MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
 MAX_BEAMS = 100_000
+MAX_SPEED_MPS = 2.0  # a robot mapping a room indoors; faster, its scans blur and the laser SLAM is meaningless
+MIN_BODY_RADIUS_M = 0.05  # a robot's body: at least 10 cm across (a 1 µm circle is a typo)
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 
@@ -279,9 +281,11 @@ def load_scenario(path) -> Scenario:
     path = Path(path)
     label = path.name
     try:
-        data = load_yaml(path.read_text())
+        data = load_yaml(read_input(path, MAX_YAML_BYTES, "scenario file").decode("utf-8"))
     except OSError as e:
         raise ScenarioError(f"{label}: cannot read file ({e.strerror or e})") from None
+    except InputLimitError as e:
+        raise ScenarioError(str(e)) from None
     except UnicodeDecodeError:
         raise ScenarioError(f"{label}: not a text file (expected a YAML scenario)") from None
     except yaml.YAMLError as e:
@@ -398,6 +402,11 @@ def _build(data, source: str) -> Scenario:
         raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
                   f"slam.resolution_m = {cells:.0f})", slam.size_m)
     merger = _MERGER(data.get("merger"), "merger")
+    roi_cells = merger.roi_m / slam.resolution_m
+    if not MIN_ROI_CELLS <= roi_cells <= MAX_ROI_CELLS:
+        raise bad("merger.roi_m", f"a side of {MIN_ROI_CELLS} to {MAX_ROI_CELLS} cells of slam.resolution_m "
+                  f"({slam.resolution_m:g} m): {MIN_ROI_CELLS * slam.resolution_m:g} to "
+                  f"{min(MAX_ROI_M, MAX_ROI_CELLS * slam.resolution_m):g} m", merger.roi_m)
     top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
     if merger.window_m > top + 1e-12:
         raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
@@ -405,6 +414,8 @@ def _build(data, source: str) -> Scenario:
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
     duration_s = _POS(data.get("duration_s", one_tour), "duration_s")
     dt_s = _POS(data.get("dt_s", 0.1), "dt_s")
+    if dt_s > duration_s:
+        raise bad("dt_s", f"a number <= duration_s ({duration_s:g} s): at least one tick", dt_s)
     if duration_s / dt_s > MAX_TICKS:
         raise bad("duration_s", f"at most {MAX_TICKS} ticks of dt_s ({dt_s:g} s): a number <= "
                   f"{MAX_TICKS * dt_s:g}", duration_s)
@@ -415,7 +426,7 @@ def _build(data, source: str) -> Scenario:
         description=string(data.get("description", ""), "description"),
         seed=integer(ge=0)(data.get("seed", 0), "seed"),
         duration_s=duration_s, dt_s=dt_s, world=world, robots=robots, laser=laser, slam=slam,
-        center_error=_center_error(data.get("center_error"), robots.names),
+        center_error=_center_error(data.get("center_error"), robots.names, merger.roi_m),
         network=_NETWORK(data.get("network"), "network"), merger=merger,
         output=_OUTPUT(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
 
@@ -465,6 +476,29 @@ def check_geometry(world: WorldSpec, robots: RobotsSpec) -> None:
                 raise Invalid(path, f"expected clear of robot {n}'s start ({s[0]:.2f}, {s[1]:.2f}) "
                                     f"(body radius {robots.body_radius_m:g} m), got center {list(c)}, "
                                     f"reaching {r:.2f} m")
+        blocked = _blocks_path(c, r, world.center, robots)
+        if blocked:
+            raise Invalid(path, f"expected clear of the robots' circle (radius {robots.radius_m:g} m about "
+                                f"world.center, bodies {robots.body_radius_m:g} m): center {list(c)} reaching "
+                                f"{r:.2f} m stands on {blocked}, and they do not avoid "
+                                "obstacles; move it, or change robots.radius_m")
+
+
+def _blocks_path(c, r: float, center, robots: RobotsSpec) -> str | None:
+    """The first robot whose path (its arc of the circle, as wide as its body) the disc (``c``, ``r``)
+    reaches, or None. Online robots drive the whole circle; offline ones ±``offline.max_deg`` about their
+    starts."""
+    d = math.dist(c, center)
+    if abs(d - robots.radius_m) >= r + robots.body_radius_m:
+        return None
+    if robots.motion == "online":
+        return "the robots' path (online robots drive the whole circle)"
+    a = math.degrees(math.atan2(c[1] - center[1], c[0] - center[0]))
+    half = math.degrees((r + robots.body_radius_m) / robots.radius_m)  # the disc's angular reach (upper bound)
+    for n, s in zip(robots.names, robots.start_angles_deg, strict=True):
+        if abs((a - s + 180.0) % 360.0 - 180.0) <= robots.offline.max_deg + half:
+            return f"robot {n}'s arc (±{robots.offline.max_deg:g}° about its start)"
+    return None
 
 
 def _world(v) -> WorldSpec:
@@ -499,11 +533,31 @@ def _robots(v) -> RobotsSpec:
     if spec.body_radius_m >= spec.radius_m:
         raise bad("robots.body_radius_m", f"a number < robots.radius_m ({spec.radius_m:g})",
                   spec.body_radius_m)
+    if spec.body_radius_m < MIN_BODY_RADIUS_M:
+        raise bad("robots.body_radius_m", f"a number >= {MIN_BODY_RADIUS_M:g} (a robot's body radius, metres)",
+                  spec.body_radius_m)
+    if spec.speed_mps > MAX_SPEED_MPS:
+        raise bad("robots.speed_mps", f"a number in (0, {MAX_SPEED_MPS:g}] (metres per second of a robot "
+                  "mapping indoors)", spec.speed_mps)
+    starts = [(spec.radius_m * math.cos(math.radians(a)), spec.radius_m * math.sin(math.radians(a)))
+              for a in spec.start_angles_deg]
+    for i in range(n):
+        for j in range(i):
+            d = math.dist(starts[i], starts[j])
+            if d < 2 * spec.body_radius_m:
+                raise bad("robots.start_angles_deg", f"robots that do not overlap at their starts: "
+                          f"{names[j]} and {names[i]} are {d:.3f} m apart, bodies of radius "
+                          f"{spec.body_radius_m:g} m (fewer robots, a larger robots.radius_m or other angles)",
+                          list(spec.start_angles_deg))
     return spec
 
 
-def _center_error(v, names) -> CenterErrorSpec:
-    r = section(lambda **kw: kw, {"magnitude_m": _NONNEG, "per_robot": lambda x, p: x})(v, "center_error")
+def _center_error(v, names, roi_m: float) -> CenterErrorSpec:
+    """Errors up to half the ROI side: farther, the ROI about the given center misses the true one (and a
+    kilometre's error asked the merge canvas for terabytes)."""
+    top = roi_m / 2
+    r = section(lambda **kw: kw, {"magnitude_m": number(ge=0, le=top), "per_robot": lambda x, p: x})(
+        v, "center_error")
     per = r.get("per_robot") or {}
     if not isinstance(per, dict):
         raise bad("center_error.per_robot", "a mapping robot name -> [dx, dy]", per)
@@ -512,6 +566,9 @@ def _center_error(v, names) -> CenterErrorSpec:
         if k not in names:
             raise bad(f"center_error.per_robot.{k}", f"a robot name (one of {', '.join(names)})", k)
         out[k] = vec2()(x, f"center_error.per_robot.{k}")
+        if math.hypot(*out[k]) > top:
+            raise bad(f"center_error.per_robot.{k}", f"an error [dx, dy] of at most {top:g} m (half of "
+                      f"merger.roi_m)", list(out[k]))
     return CenterErrorSpec(r.get("magnitude_m", 0.0), out)
 
 

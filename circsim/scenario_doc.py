@@ -30,16 +30,22 @@ CONSTRAINTS = """
 - `slam.size_m` > 4 × `robots.radius_m` (the circle fits in each robot's map, centred on its start);
   `slam.size_m` / `slam.resolution_m` ≤ {cells} cells a side.
 - `merger.window_m` ≤ `merger.roi_m` / 4; `merger.roi_m` ≤ {roi:g} m.
-- `duration_s` / `dt_s` ≤ {ticks} ticks; `duration_s` defaults to one tour of the circle
-  (2π·`robots.radius_m` / `robots.speed_mps`, rounded up).
+- `duration_s` / `dt_s` ≤ {ticks} ticks; `dt_s` ≤ `duration_s`; `duration_s` defaults to one tour of the
+  circle (2π·`robots.radius_m` / `robots.speed_mps`, rounded up).
 - `robots.names`: unique, at least two; `robots.start_angles_deg` and `robots.yaw_offsets_deg`: one per robot
-  (with names other than three and no start angles: spread evenly from 90°); `robots.body_radius_m` <
-  `robots.radius_m`.
+  (with names other than three and no start angles: spread evenly from 90°); {body:g} m ≤
+  `robots.body_radius_m` < `robots.radius_m`; `robots.speed_mps` ≤ {speed:g}; the robots' bodies do not
+  overlap at their starts.
 - With a rectangular `world.room`: `world.center`, the robots' circle plus their bodies, every pillar and
-  object lie inside the room; no pillar or object stands on a robot's start. `world.room` is either
-  `size_m` (and `center`: the room is centred on `world.center` unless given) or `walls`, not both.
-- `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
+  object lie inside the room. No pillar or object stands on a robot's start, nor on the robots' path: the
+  circle (as wide as their bodies) for online robots, which drive it without avoiding obstacles; each
+  robot's arc ±`robots.offline.max_deg` for offline ones. `world.room` is either `size_m` (and `center`:
+  the room is centred on `world.center` unless given) or `walls`, not both.
+- `center_error.magnitude_m` and each `center_error.per_robot` error at most `merger.roi_m` / 2;
+  `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
   `magnitude_m` for those robots).
+- A scenario file is a regular file of at most 1 MiB whose YAML aliases expand to at most 2 Mi nodes and
+  characters (see docs/limits.md).
 """
 
 
@@ -128,5 +134,6 @@ def scenario_reference() -> str:
             _rows(schema, prefix, defaults, rows)
         parts.append(f"\n## {title}\n\n| key | default | expected |\n|---|---|---|\n")
         parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
-    parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS))
+    parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS,
+                                    body=S.MIN_BODY_RADIUS_M, speed=S.MAX_SPEED_MPS))
     return "".join(parts)

@@ -42,6 +42,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from merger.mapio import load_yaml
+
 from . import jsonout
 from .events import Observer
 from .scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
@@ -100,8 +102,8 @@ def parse_grid(specs: Iterable[str]) -> list[Axis]:
         for item in text.split(","):
             texts.append(item.strip())
             try:
-                v = yaml.safe_load(item)
-            except yaml.YAMLError:
+                v = load_yaml(item)  # as --set parses values (YAML 1.2 numbers: 1e-1 is a number)
+            except (yaml.YAMLError, ValueError, TypeError, RecursionError):
                 raise SweepError(f"--grid {key}: value {item!r} is not valid YAML") from None
             if v is None:
                 raise SweepError(f"--grid {key}: empty value in {text!r}; expected V1,V2,...")
@@ -269,15 +271,65 @@ def _worst_teammate(errors: dict | None, robot: str) -> float | None:
 
 # --- the row store ---------------------------------------------------------------------------------
 def read_rows(path: Path) -> list[dict]:
-    """Rows of a runs.jsonl; a torn last line (killed while writing) is ignored."""
+    """Rows of a runs.jsonl; a torn line (a sweep killed while writing it) is ignored. A line that is JSON
+    but not a run's row (an object with its ``run_key``) is refused: SweepError naming the file and line."""
     rows = []
     if path.exists():
-        for line in path.read_text().splitlines():
+        for i, raw in enumerate(path.read_bytes().splitlines(), 1):
             try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:
+                row = json.loads(raw)
+            except (json.JSONDecodeError, UnicodeDecodeError):
                 continue
+            if not (isinstance(row, dict) and isinstance(row.get("run_key"), str)):
+                text = raw.decode("utf-8", "replace")
+                raise SweepError(f"{path}: line {i}: expected a run's row (a JSON object with its run_key), got "
+                                 f"{text[:60]!r}{'...' if len(text) > 60 else ''}; remove the line, or start "
+                                 "again with --overwrite")
+            rows.append(row)
     return rows
+
+
+class FolderLock:
+    """An exclusive ``flock`` on the folder itself (no lock file is left behind), held until :meth:`close`
+    or the process ends. A context manager."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)  # closing the descriptor releases the lock
+            self.fd = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def check_sweep_outputs(out: Path) -> None:
+    """The files a sweep writes in ``out`` must be regular files or absent (not a FIFO, whose read would
+    block, a device or a link): MapFileError naming the file."""
+    from merger.mapio import check_outputs
+
+    check_outputs({out / n: "--out" for n in (RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV, SWEEP_JSON,
+                                               ERRORS_JSONL, "sweep.png")})
+
+
+def lock_out(out: Path) -> FolderLock:
+    """Lock the sweep folder ``out`` against a second sweep writing into it (its rows would interleave
+    with this one's: two sweeps gave 12 rows for 6 runs). SweepError if another sweep holds it."""
+    import fcntl
+
+    fd = os.open(out, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_CLOEXEC", 0))
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise SweepError(f"--out {out}: another sweep is writing there; wait for it to finish, or use another "
+                         "--out") from None
+    return FolderLock(fd)
 
 
 SWEEP_JSON = "sweep.json"
@@ -491,11 +543,15 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
                     bar.write(f"circsim: run {dict(task.grid)} seed {task.seed} failed: "
                               f"{error.splitlines()[-1]}", file=sys.stderr)
                 elif not row.get("interrupted"):
-                    if f is None:
-                        write_sweep_identity(out, tasks)
-                        f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
-                    f.write(jsonout.dumps(row) + "\n")  # floats to 12 significant digits
-                    f.flush()
+                    try:
+                        if f is None:
+                            write_sweep_identity(out, tasks)
+                            f = open(out / RUNS_JSONL, "a")  # noqa: SIM115 - closed below, after the last row
+                        f.write(jsonout.dumps(row) + "\n")  # floats to 12 significant digits
+                        f.flush()
+                    except OSError as e:  # a full disk: the rows already written stay; --resume continues
+                        raise SweepError(f"{out / RUNS_JSONL}: cannot write a run's row ({e.strerror or e}); "
+                                         f"{written} rows of this sweep were written before") from None
                     written += 1
                     if on_row:
                         on_row(row)

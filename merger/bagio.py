@@ -56,6 +56,18 @@ def grid_from_message(msg, where: str) -> OccupancyGrid:
     return OccupancyGrid.from_ros(data.reshape(h, w), res, (x, y))
 
 
+def check_bag_files(path: Path) -> None:
+    """A bag is a regular file or a folder of regular files: a FIFO (or a device) would block the reader
+    or feed it forever (issue 26). MapFileError naming the file otherwise."""
+    import stat
+
+    for p in [path, *(sorted(path.iterdir()) if path.is_dir() else [])]:
+        mode = p.stat().st_mode
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+            raise MapFileError(f"{p}: expected a ROS bag file (or a ROS 2 bag folder of files), got "
+                               f"{'a FIFO' if stat.S_ISFIFO(mode) else 'a device or special file'}")
+
+
 def read_bag_maps(path, topics: list[str]) -> dict[str, OccupancyGrid]:
     """The last ``nav_msgs/msg/OccupancyGrid`` of each of ``topics`` in the bag at ``path`` (a ROS 2 bag
     folder, or a ROS 1 ``.bag``), in the order of ``topics``."""
@@ -63,6 +75,7 @@ def read_bag_maps(path, topics: list[str]) -> dict[str, OccupancyGrid]:
     path = Path(path)
     if not path.exists():
         raise MapFileError(f"{path}: no such bag")
+    check_bag_files(path)
     try:
         reader = AnyReader([path], default_typestore=typestore)
         reader.open()

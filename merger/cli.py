@@ -18,21 +18,28 @@ import numpy as np
 from . import align
 from .mapio import (
     CENTERS_FILE,
+    MAX_MAP_CELLS,
+    MAX_MAP_SIDE,
+    MIN_RESOLUTION_M,
     MapFileError,
     centers_yaml,
+    check_outputs,
     ensure_output_dir,
     load_map,
     map_files,
+    map_input_paths,
+    map_paths,
     overlay_png,
     write_files,
 )
-from .search import MAX_WINDOW_FRACTION, SEARCH_METHODS
+from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
 from .transform import canvas, paste, rotation, warp_grid
 from .verify import verify
 
 MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
+MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -40,6 +47,16 @@ _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
 
 class UsageError(Exception):
     pass
+
+
+def package_version() -> str:
+    """The installed distribution's version (merger ships in the ``circsim`` distribution)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("circsim")
+    except PackageNotFoundError:  # pragma: no cover - run from a source tree without installing
+        return "unknown (not installed)"
 
 
 def join_negative_xy(argv: list[str]) -> list[str]:
@@ -79,10 +96,36 @@ def parse_xy(text: str, what: str) -> tuple[float, float]:
     return x, y
 
 
+def check_center(grid, center, roi_m: float, what: str, path) -> None:
+    """A common center must lie within half the ROI side of its map's extent: beyond, the ROI holds none
+    of the map (a typo, or a center in another frame), and the canvas of the merged maps would span the
+    distance (``--center 1e7,0`` asked for 46 GiB)."""
+    x0, x1, y0, y1 = grid.extent
+    m = roi_m / 2
+    if not (x0 - m <= center[0] <= x1 + m and y0 - m <= center[1] <= y1 + m):
+        raise UsageError(f"{what}: ({center[0]:g}, {center[1]:g}) is outside {path}, which spans x [{x0:g}, "
+                         f"{x1:g}], y [{y0:g}, {y1:g}] m: expected a point within {m:g} m (half the --roi) of "
+                         "the map, in its frame")
+
+
+def check_roi(roi_m: float, resolution: float, path) -> None:
+    """--roi in cells of the maps' resolution: at least :data:`MIN_ROI_CELLS`, at most the search's limit
+    (:data:`MAX_ROI_CELLS`)."""
+    try:
+        check_roi_cells(roi_m, resolution)
+    except ValueError as e:
+        raise UsageError(f"--roi: {e} (cells of {path})") from None
+    if roi_m / resolution < MIN_ROI_CELLS:
+        raise UsageError(f"--roi: {roi_m:g} m is {roi_m / resolution:.3g} cells a side at "
+                         f"{resolution:g} m per cell ({path}): expected at least {MIN_ROI_CELLS} cells, "
+                         f"{MIN_ROI_CELLS * resolution:g} m")
+
+
 def add_merge_options(p: argparse.ArgumentParser) -> None:
     d = MergeParams()
     p.add_argument("--roi", type=float, default=d.roi_m, metavar="M",
-                   help=f"side of the square region of interest, metres, at most {MAX_ROI_M:g} (default {d.roi_m})")
+                   help=f"side of the square region of interest, metres, at most {MAX_ROI_M:g} and {MAX_ROI_CELLS} "
+                        f"cells of the maps (default {d.roi_m})")
     p.add_argument("--measure", choices=MEASURES, default=d.measure)
     p.add_argument("--method", choices=sorted(SEARCH_METHODS), default=d.method)
     p.add_argument("--window", type=float, default=d.window_m, metavar="M",
@@ -103,7 +146,12 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="merger", description="Merge occupancy grid maps of robots sharing a common center.")
+    p = _Parser(prog="merger", description="Merge occupancy grid maps of robots sharing a common center.",
+                epilog="Limits (checked before any work; docs/limits.md): map YAML files up to 1 MiB, map images up "
+                       f"to {MAX_MAP_CELLS:,} cells ({MAX_MAP_SIDE} a side), cells of at least {MIN_RESOLUTION_M:g} "
+                       f"m, --roi up to {MAX_ROI_M:g} m and {MAX_ROI_CELLS} cells a side, centers within half "
+                       "the ROI of their map. Errors: one line, exit 2.")
+    p.add_argument("--version", action="version", version=f"merger {package_version()}")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     a = sub.add_parser("align", help="find the rotation of MOVING onto REF about the common center")
     a.add_argument("ref", type=Path, help="reference map (map_server YAML)")
@@ -173,6 +221,9 @@ def cmd_align(args) -> int:
     c_ref = parse_xy(args.center, "--center")
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
     ref, mov = load_map(args.ref), load_map(args.moving)
+    check_roi(params.roi_m, ref.resolution, args.ref)
+    check_center(ref, c_ref, params.roi_m, "--center", args.ref)
+    check_center(mov, c_mov, params.roi_m, "--center-moving" if args.center_moving else "--center", args.moving)
     al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
                method=params.method, window_m=params.window_m, refine=params.refine)
     tx, ty = al.translation_m
@@ -228,7 +279,7 @@ def map_names(paths: list[Path]) -> list[str]:
     raise UsageError("merge: cannot name the maps distinctly")  # pragma: no cover - resolved paths differ
 
 
-def merge_inputs(paths: list[Path], centers: list[str]) -> list[MapInput]:
+def merge_inputs(paths: list[Path], centers: list[str], roi_m: float) -> list[MapInput]:
     if len(paths) < 2:
         raise UsageError("merge: expected at least two maps (map_server YAML files, or --bag BAG --topics ...)")
     if len(centers) not in (1, len(paths)):
@@ -237,10 +288,19 @@ def merge_inputs(paths: list[Path], centers: list[str]) -> list[MapInput]:
     names = map_names(paths)
     grids = [load_map(p) for p in paths]
     check_same_resolution(paths, grids)
+    check_map_centers(paths, grids, cs, roi_m)
     return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)]
 
 
-def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str]) -> list[MapInput]:
+def check_map_centers(paths, grids, centers, roi_m: float) -> None:
+    """Each map's center near its map (:func:`check_center`), and --roi within the cell limit."""
+    for i, (p, g, c) in enumerate(zip(paths, grids, centers, strict=True)):
+        check_center(g, c, roi_m, "--center" if len(set(centers)) == 1 else f"--center (map {i + 1})", p)
+    check_roi(roi_m, grids[0].resolution, paths[0])
+
+
+def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],
+               roi_m: float) -> list[MapInput]:
     """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot."""
     from .bagio import read_bag_maps, topic_names
 
@@ -256,6 +316,7 @@ def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: lis
     cs = [parse_xy(c, "--center") for c in centers] * (len(topics) if len(centers) == 1 else 1)
     grids = read_bag_maps(bag, topics)
     check_same_resolution([f"{bag}:{t}" for t in topics], [grids[t] for t in topics])
+    check_map_centers([f"{bag}:{t}" for t in topics], [grids[t] for t in topics], cs, roi_m)
     return [MapInput(n, grids[t], c) for n, t, c in zip(topic_names(topics), topics, cs, strict=True)]
 
 
@@ -318,10 +379,33 @@ def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path,
     else:
         return {}
     files = map_files(merged, out)
-    y = next(p for p in files if p.suffix == ".yaml")
-    files[y.with_name(y.stem + "_overlay.png")] = overlay_png(layers, [m.name for m in maps],
+    files[overlay_path(map_paths(out)[0])] = overlay_png(layers, [m.name for m in maps],
                                                              title=overlay_title(res))
     return files
+
+
+DEMO_MAX_RADIUS_M = 2.4  # the generated room (8 x 6 m, off-center by (0.7, 0.4)) holds a circle this big
+DEMO_MAX_RADIUS_REAL_M = 5.0  # --real: the views are 12 m squares about each robot's start
+
+
+def check_output_folder(path: Path, option: str) -> Path:
+    """An output folder: a folder or nothing yet (not a file, a device, ...)."""
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{option} {path}: expected an output folder, got an existing file")
+    return path
+
+
+def overlay_path(yaml_path: Path) -> Path:
+    """OUT_overlay.png beside OUT.yaml (the stem keeps its dots)."""
+    return yaml_path.with_name(yaml_path.name.removesuffix(".yaml") + "_overlay.png")
+
+
+def check_stem(path: Path, option: str) -> Path:
+    """An output stem (``out/merged``): a file name, not ``''``, ``.`` or an existing folder."""
+    if path.name in ("", ".", "..") or str(path).endswith("/") or path.is_dir():
+        raise UsageError(f"{option}: expected an output file stem such as out/merged (writes out/merged.yaml, "
+                         f".pgm and _overlay.png), got {str(path)!r}" + (" (a folder)" if path.is_dir() else ""))
+    return path
 
 
 def overlay_title(res) -> str:
@@ -343,12 +427,16 @@ def cmd_merge(args) -> int:
     params = params_from(args)
     if args.topics and not args.bag:
         raise UsageError("--topics: only with --bag BAG")
-    maps = (bag_inputs(args.bag, args.topics, args.maps, args.center) if args.bag
-            else merge_inputs(args.maps, args.center))
-    ensure_output_dir(args.output.parent, "-o")
+    out = check_stem(args.output, "-o")
+    y, img = map_paths(out)
+    inputs = {args.bag: "--bag"} if args.bag else {q: "map" for p in args.maps for q in map_input_paths(p)}
+    check_outputs({y: "-o", img: "-o", overlay_path(y): "-o"}, inputs)  # before the maps are decoded
+    maps = (bag_inputs(args.bag, args.topics, args.maps, args.center, params.roi_m) if args.bag
+            else merge_inputs(args.maps, args.center, params.roi_m))
+    ensure_output_dir(out.parent, "-o")
     res = merge_team(maps, params)
     report_merge(res, args.json)
-    written = write_merge(res, maps, args.output, args.force)
+    written = write_merge(res, maps, out, args.force)
     if not args.json:
         print("wrote " + ", ".join(map(str, written)) if written else
               "nothing written (no order passed verification; --force writes the best hypothesis)")
@@ -369,16 +457,39 @@ def cmd_demo(args) -> int:
     params = params_from(args)
     if not (math.isfinite(args.arc) and 0 <= args.arc <= 180):
         raise UsageError(f"--arc: expected a number of degrees in [0, 180], got {args.arc:g}")
-    if args.radius is not None and not (math.isfinite(args.radius) and args.radius > 0):
-        raise UsageError(f"--radius: expected a positive number of metres, got {args.radius:g}")
-    if not (math.isfinite(args.center_error) and args.center_error >= 0):
-        raise UsageError(f"--center-error: expected a number of metres >= 0, got {args.center_error:g}")
+    top_r = DEMO_MAX_RADIUS_REAL_M if args.real else DEMO_MAX_RADIUS_M
+    if args.radius is not None and not (math.isfinite(args.radius) and 0 < args.radius <= top_r):
+        where = ("the robots' views are 12 m maps cut around their arcs" if args.real else
+                 "the generated room is 8 x 6 m about the center")
+        raise UsageError(f"--radius: expected a number of metres in (0, {top_r:g}] ({where}), got {args.radius:g}")
+    top_e = params.roi_m / 2
+    if not (math.isfinite(args.center_error) and 0 <= args.center_error <= top_e):
+        raise UsageError(f"--center-error: expected a number of metres in [0, {top_e:g}] (half the --roi: "
+                         f"farther, the ROI misses the true center), got {args.center_error:g}")
+    if args.seed < 0:
+        raise UsageError(f"--seed: expected an integer >= 0, got {args.seed}")
+    if args.real_center and not args.real:
+        raise UsageError("--real-center: only with --real MAP.yaml")
+    out = check_output_folder(args.output, "-o")
     rng = np.random.default_rng(args.seed)
     names, starts = ["Lyon", "Auckland", "Nevers"], [90.0, 210.0, 330.0]
+    outputs = {out / f"{n}{ext}": "-o" for n in names for ext in (".yaml", ".pgm")}
+    outputs.update({out / CENTERS_FILE: "-o", out / "merged.yaml": "-o", out / "merged.pgm": "-o",
+                    out / "merged_overlay.png": "-o"})
+    check_outputs(outputs, {q: "--real" for q in map_input_paths(args.real)} if args.real else {})
     if args.real:
         world = load_map(args.real)
+        check_roi(params.roi_m, world.resolution, args.real)
         free_c, clearance = widest_free_point(world)
-        center = parse_xy(args.real_center, "--real-center") if args.real_center else free_c
+        if args.real_center:
+            center = parse_xy(args.real_center, "--real-center")
+            x0, x1, y0, y1 = world.extent
+            if not (x0 <= center[0] <= x1 and y0 <= center[1] <= y1):
+                raise UsageError(f"--real-center: ({center[0]:g}, {center[1]:g}) is outside {args.real}, which "
+                                 f"spans x [{x0:g}, {x1:g}], y [{y0:g}, {y1:g}] m: expected a point of the map "
+                                 f"(default: its widest free point, {free_c[0]:.2f},{free_c[1]:.2f})")
+        else:
+            center = free_c
         radius = args.radius or min(0.8 * clearance, 1.8)
         source = f"{args.real} (center {center[0]:.2f},{center[1]:.2f}, radius {radius:.2f} m)"
 
@@ -394,7 +505,6 @@ def cmd_demo(args) -> int:
             return partial_view(scene, pose, arc_viewpoints(a, args.arc, radius), noise=0.002, rng=rng)
     if radius <= 0:
         raise UsageError(f"--radius: expected a positive number of metres, got {radius}")
-    out = args.output
     ensure_output_dir(out, "-o")
     poses, views, files = [], [], {}
     for name, a in zip(names, starts, strict=True):

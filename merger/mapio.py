@@ -33,16 +33,28 @@ from .overlay import overlay_picture
 PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
 MODES = ("trinary", "scale", "raw")
 MAX_ORIGIN_M = 1e6  # a map origin a thousand kilometres away is a typo
+MIN_RESOLUTION_M = 1e-3  # a map of cells under a millimetre is a typo in its YAML
+MAX_YAML_BYTES = 1 << 20  # a map YAML or a scenario is a few kB; 1 MiB is far beyond any
+MAX_YAML_EXPANDED = 2 << 20  # nodes + characters after expanding aliases (a "billion laughs" stops here)
+MAX_MAP_CELLS = 25_000_000  # cells of one map image (5000 x 5000: 250 m square at 5 cm), checked before decoding
+MAX_MAP_SIDE = 32_000  # cells on a side (OpenCV's warps take fewer than 32,767)
 _PGM_RESOLUTION = re.compile(rb"#[^\n]*?([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*m/pix")
 
 
 _CONTROL = re.compile("[\x00-\x1f\x7f\x85\u2028\u2029]")
 
 
+MAX_MESSAGE_CHARS = 2000  # an error message echoing a user's value is cut here
+
+
 def one_line(text: str) -> str:
     """``text`` with line breaks and other control characters escaped (``\\n``): a user's file name or
-    value echoed in an error message cannot break it over lines."""
-    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], str(text))
+    value echoed in an error message cannot break it over lines; cut after :data:`MAX_MESSAGE_CHARS`
+    characters (a value of a megabyte is not echoed whole)."""
+    text = str(text)
+    if len(text) > MAX_MESSAGE_CHARS:
+        text = f"{text[:MAX_MESSAGE_CHARS]}... ({len(text)} characters)"
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
 
 
 class MapFileError(ValueError):
@@ -64,9 +76,87 @@ Yaml12Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+class YamlLimitError(yaml.YAMLError):
+    """A YAML document that would expand beyond :data:`MAX_YAML_EXPANDED` or holds a recursive alias."""
+
+
+def _expanded_size(node, memo: dict, active: set) -> int:
+    """Nodes plus scalar characters of ``node`` with every alias expanded (memoized per node: linear in
+    the document, whatever the expansion)."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    if key in active:
+        raise YamlLimitError("a recursive alias (an anchor used inside itself)")
+    if isinstance(node, yaml.ScalarNode):
+        size = 1 + len(node.value)
+    else:
+        active.add(key)
+        items = node.value if isinstance(node, yaml.SequenceNode) else [x for kv in node.value for x in kv]
+        size = 1
+        for child in items:
+            size += _expanded_size(child, memo, active)
+            if size > MAX_YAML_EXPANDED:
+                break
+        active.discard(key)
+    memo[key] = size
+    if size > MAX_YAML_EXPANDED:
+        raise YamlLimitError(f"expands to more than {MAX_YAML_EXPANDED} nodes and characters (aliases "
+                             "repeating anchors: a \"billion laughs\")")
+    return size
+
+
 def load_yaml(text: str):
-    """YAML text parsed safely with YAML 1.2 floats (:class:`Yaml12Loader`)."""
-    return yaml.load(text, Loader=Yaml12Loader)  # noqa: S506 - a SafeLoader subclass
+    """YAML text parsed safely with YAML 1.2 floats (:class:`Yaml12Loader`); a document whose aliases
+    would expand beyond :data:`MAX_YAML_EXPANDED` nodes and characters, or refer to themselves, raises
+    :class:`YamlLimitError` before anything is built."""
+    loader = Yaml12Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _expanded_size(node, {}, set())
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def read_input(path, limit: int, what: str = "file") -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them. A FIFO, a device, a socket or a
+    folder is refused without blocking (opened non-blocking, checked with fstat before any read), and so
+    is a larger file; OSError (missing, unreadable) passes through. ValueError messages start with the
+    path (the caller adds its own context)."""
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode)
+                    else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "a socket"
+                    if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+            raise InputLimitError(f"{path}: expected a regular {what}, got {kind}")
+        if st.st_size > limit:
+            raise InputLimitError(f"{path}: {st.st_size} bytes: expected a {what} of at most {limit} bytes")
+        chunks, total = [], 0
+        while True:
+            b = os.read(fd, min(1 << 20, limit + 1 - total))
+            if not b:
+                break
+            chunks.append(b)
+            total += len(b)
+            if total > limit:
+                raise InputLimitError(f"{path}: expected a {what} of at most {limit} bytes (it grew while read)")
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
+class InputLimitError(ValueError):
+    """An input that is not a regular file or exceeds its size limit (message starts with the path)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
 
 
 def _number(meta: dict, key: str, path: Path, default=None, *, lo=None, hi=None) -> float:
@@ -86,9 +176,17 @@ def read_metadata(path) -> dict:
     """Parse and validate a map_server YAML file; returns its keys with defaults filled in."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = read_input(path, MAX_YAML_BYTES, "map YAML file")
     except OSError as e:
         raise MapFileError(f"{path}: cannot read: {e.strerror or e}") from None
+    except InputLimitError as e:
+        raise MapFileError(str(e)) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        hint = (" (this is an image: give the map's YAML, which names its image)"
+                if raw[:2] in (b"P5", b"P2") or raw[:4] == b"\x89PNG" else "")
+        raise MapFileError(f"{path}: expected a map_server YAML file (UTF-8 text), got binary data{hint}") from None
     try:
         meta = load_yaml(text)
     except yaml.YAMLError as e:
@@ -122,15 +220,63 @@ def read_metadata(path) -> dict:
         "free_thresh": _number(meta, "free_thresh", path, 0.196, lo=-1e-12, hi=1.0),
         "mode": mode,
     }
+    if out["resolution"] < MIN_RESOLUTION_M:
+        raise MapFileError(f"{path}: key 'resolution': expected a cell size of at least {MIN_RESOLUTION_M:g} m, "
+                           f"got {out['resolution']:g}")
     if out["free_thresh"] >= out["occupied_thresh"]:
         raise MapFileError(f"{path}: key 'free_thresh': expected < occupied_thresh "
                            f"({out['occupied_thresh']}), got {out['free_thresh']}")
     return out
 
 
+def image_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) of the image ``path`` from its header alone (Pillow reads no pixels), or None when
+    Pillow does not know the format."""
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Pillow's decompression-bomb warning: our own limit is checked
+        try:
+            with Image.open(path) as im:
+                return im.size
+        except Image.DecompressionBombError as e:  # beyond twice Pillow's own limit: the size is in the text
+            m = re.search(r"\((\d+) pixels", str(e))
+            n = int(m.group(1)) if m else MAX_MAP_CELLS + 1
+            return (n, 1)
+        except (UnidentifiedImageError, OSError, ValueError, SyntaxError):
+            return None
+
+
+def check_image_file(path: Path, yaml_path: Path) -> None:
+    """The image of ``yaml_path`` must be a regular file whose header declares at most :data:`MAX_MAP_CELLS`
+    cells and :data:`MAX_MAP_SIDE` a side; checked before decoding (a few hundred kB of PNG can decode
+    to gigabytes)."""
+    import stat
+
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise MapFileError(f"{yaml_path}: key 'image': file {path} does not exist") from None
+    except OSError as e:
+        raise MapFileError(f"{yaml_path}: key 'image': cannot read {path} ({e.strerror or e})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file (a FIFO, device or socket)"
+        raise MapFileError(f"{yaml_path}: key 'image': {path} is {kind}: expected an image file")
+    size = image_size(path)
+    if size is None:
+        raise MapFileError(f"{path}: not a readable image (expected PGM, PNG, BMP, JPEG, TIFF, ... whose size "
+                           "can be read from its header)")
+    w, h = size
+    if w * h > MAX_MAP_CELLS or max(w, h) > MAX_MAP_SIDE:
+        what = f"{w} x {h} cells" if h > 1 or w <= MAX_MAP_SIDE else f"{w} cells"
+        raise MapFileError(f"{path}: an image of {what}: expected at most {MAX_MAP_CELLS} cells and "
+                           f"{MAX_MAP_SIDE} a side (checked before decoding)")
+
+
 def read_image(path: Path, yaml_path: Path) -> np.ndarray:
-    if not path.is_file():
-        raise MapFileError(f"{yaml_path}: key 'image': file {path} does not exist")
+    check_image_file(path, yaml_path)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our message says it, in one line
     try:
@@ -195,6 +341,12 @@ def load_map(path) -> OccupancyGrid:
     return OccupancyGrid(np.ascontiguousarray(states), meta["resolution"], tuple(meta["origin"][:2]))
 
 
+def map_input_paths(path) -> list[Path]:
+    """The files a map is read from: its YAML and its image (for :func:`check_outputs`)."""
+    path = Path(path)
+    return [path, path.parent / read_metadata(path)["image"]]
+
+
 def ensure_output_dir(path, option: str) -> None:
     """Make the folder ``path`` and check it is writable, before any work is done; a one-line
     :class:`MapFileError` naming ``option`` and the folder otherwise."""
@@ -249,9 +401,18 @@ def write_files(files: dict) -> list[Path]:
     """Write ``{path: bytes}`` all or none: every file goes to a temporary name in its folder first, and
     only when all are written are they renamed (:func:`os.replace`) into place. A failure removes the
     temporary files and raises :class:`MapFileError` naming the file; a reader never sees half a file."""
+    import stat
+
     for path in files:
-        if Path(path).is_dir():
+        try:
+            st = os.lstat(path)
+        except OSError:
+            continue
+        if stat.S_ISDIR(st.st_mode):
             raise MapFileError(f"{path}: cannot write: a folder has that name")
+        if not stat.S_ISREG(st.st_mode):
+            raise MapFileError(f"{path}: cannot write: it is a symbolic link or a special file (refusing to "
+                               "replace it)")
     temps: list[tuple[str, Path]] = []
     placed: list[Path] = []
     try:
@@ -278,12 +439,55 @@ def write_files(files: dict) -> list[Path]:
     return [p for _, p in temps]
 
 
-def map_files(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> dict[Path, bytes]:
-    """The files of ``grid`` as map_saver writes them: ``{<stem>.yaml: ..., <stem>.pgm: ...}`` (free 254,
-    occupied 0, unknown 205). ``path`` may name the YAML or the stem."""
+def map_paths(path, image_suffix: str = ".pgm") -> tuple[Path, Path]:
+    """(YAML path, image path) of the map ``path`` names: the YAML or the stem. A stem keeps its dots
+    (``out/run_w0.5`` → ``out/run_w0.5.yaml``, not ``out/run_w0.yaml``)."""
     path = Path(path)
     stem = path.with_suffix("") if path.suffix in (".yaml", ".yml", ".pgm") else path
-    yaml_path, img_path = stem.with_suffix(".yaml"), stem.with_suffix(image_suffix)
+    return stem.with_name(stem.name + ".yaml"), stem.with_name(stem.name + image_suffix)
+
+
+def check_outputs(outputs: dict, inputs: dict | None = None) -> None:
+    """Refuse, before any work, outputs that would destroy data: ``outputs`` (a mapping or (path, what)
+    pairs) and ``inputs`` map paths to the option or file that names them. An output may not be an input (or its image), another output, a
+    folder, a symbolic link or another non-regular file (device, FIFO, socket); :class:`MapFileError`
+    naming both otherwise. (Outputs are then written by :func:`write_files`: temporary file, rename.)"""
+    import stat
+
+    def key(p):
+        return os.path.normcase(os.path.realpath(p))
+
+    ins = {key(p): (p, what) for p, what in (inputs or {}).items()}
+    seen: dict[str, tuple] = {}
+    for p, what in (outputs.items() if isinstance(outputs, dict) else outputs):
+        p = Path(p)
+        if p.name in ("", ".", ".."):
+            raise MapFileError(f"{what}: expected a file name, got {str(p)!r}")
+        try:
+            st = os.lstat(p)
+        except FileNotFoundError:
+            st = None
+        except OSError as e:
+            raise MapFileError(f"{what} {p}: cannot write there ({e.strerror or e})") from None
+        if st is not None and not stat.S_ISREG(st.st_mode):
+            kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a symbolic link" if stat.S_ISLNK(st.st_mode)
+                    else "not a regular file (a device, FIFO or socket)")
+            raise MapFileError(f"{what} {p}: is {kind}: expected a regular file to create or replace "
+                               "(refusing to replace it)")
+        k = key(p)
+        if k in ins:
+            q, w = ins[k]
+            raise MapFileError(f"{what} {p}: is also an input ({w} {q}): expected a different output path")
+        if k in seen:
+            q, w = seen[k]
+            raise MapFileError(f"{what} {p}: is also written by {w} ({q}): expected distinct outputs")
+        seen[k] = (p, what)
+
+
+def map_files(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> dict[Path, bytes]:
+    """The files of ``grid`` as map_saver writes them: ``{<stem>.yaml: ..., <stem>.pgm: ...}`` (free 254,
+    occupied 0, unknown 205). ``path`` may name the YAML or the stem (:func:`map_paths`)."""
+    yaml_path, img_path = map_paths(path, image_suffix)
     lut = np.array([PGM_UNKNOWN, PGM_FREE, PGM_OCCUPIED], np.uint8)
     img = np.flipud(lut[grid.states])
     if image_suffix == ".pgm":

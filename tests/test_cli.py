@@ -25,8 +25,11 @@ def test_sigterm_during_a_run_completes_the_recording_and_the_json(tmp_path):
            "--json", str(js), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        wait_for(lambda: rrd.exists() and rrd.stat().st_size > 200_000 or proc.poll() is not None, 120,
-                  "the recording to grow")
+        def grown():  # the recording is written beside t.rrd and renamed when complete (issue 26)
+            parts = list(tmp_path.glob(".t.rrd.*.part.rrd"))
+            return parts and parts[0].stat().st_size > 200_000
+
+        wait_for(lambda: grown() or proc.poll() is not None, 120, "the recording to grow")
         assert proc.poll() is None, proc.communicate()
         assert not js.exists()  # the JSON appears once, whole, at the end
         proc.send_signal(signal.SIGTERM)

@@ -384,9 +384,13 @@ def test_ctrl_c_leaves_a_complete_readable_recording(tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "RERUN_STRICT": "1"}, preexec_fn=sigint_default)
     try:
-        # wait until merges are being logged (the file grows past the static part), then press Ctrl-C
-        wait_for(lambda: rrd.exists() and rrd.stat().st_size > 300_000 or proc.poll() is not None, 120,
-                  "the recording to grow")
+        # wait until merges are being logged (the file grows past the static part), then press Ctrl-C; the
+        # recording is written to a temporary file beside cut.rrd and renamed when complete (issue 26)
+        def grown():
+            parts = list(tmp_path.glob(".cut.rrd.*.part.rrd"))
+            return parts and parts[0].stat().st_size > 300_000
+
+        wait_for(lambda: grown() or proc.poll() is not None, 120, "the recording to grow")
         assert proc.poll() is None, proc.communicate()
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=120)
@@ -397,6 +401,7 @@ def test_ctrl_c_leaves_a_complete_readable_recording(tmp_path):
     d = json.loads(js.read_text())
     assert d["interrupted"] and d["sim_s"] < 60
     assert verify(rrd).returncode == 0, verify(rrd).stderr
+    assert not list(tmp_path.glob(".*.part*")), "the temporary recording was renamed into place"
     rec = read_recording(rrd)
     assert "INTERRUPTED" in texts(rec, "/events/sim")[-1]
     for n, m in d["robots"].items():

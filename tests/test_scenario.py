@@ -226,7 +226,11 @@ def test_geometry_and_sizes_are_checked(sets, needle):
 def test_bundled_scenes_pass_the_geometry_checks_and_a_clear_start_is_accepted():
     sc = load_scenario(bundled_scenarios()["scene1"])
     assert sc.with_overrides(["world.pillars=[{center: [0.15, 1.15], radius: 0.1}]"]).world.pillars[0].radius == 0.1
-    assert sc.with_overrides(["robots.radius_m=2.5"]).robots.radius_m == 2.5  # 2.5 + 0.18 < 3 - 0.1
+    # 2.5 + 0.18 < 3 - 0.1: the circle fits the room; the chair at (2.55, 0.8) would then stand on the robots'
+    # path (issue 26: they drive through it), so it goes
+    assert sc.with_overrides(["robots.radius_m=2.5", "world.objects=[]"]).robots.radius_m == 2.5
+    with pytest.raises(ScenarioError, match=r"world.objects\[1\]: expected clear of the robots' circle"):
+        sc.with_overrides(["robots.radius_m=2.5"])
     load_scenario(bundled_scenarios()["scene2"])
 
 

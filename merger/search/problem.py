@@ -26,6 +26,7 @@ def window_cells(window_m: float, resolution: float) -> int:
 
 
 MAX_WINDOW_FRACTION = 0.25  # the translation window may cover at most a quarter of the ROI side
+MAX_ROI_CELLS = 4000  # ROI side in cells (100 m at 2.5 cm): the search's tables and OpenCV's 32,767 limits
 
 COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
@@ -52,6 +53,7 @@ class RotationProblem:
         if not (math.isfinite(self.roi_m) and self.roi_m > 0):
             raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m}")
         check_window(self.window_m, self.roi_m)
+        check_roi_cells(self.roi_m, self.ref.resolution)
         for name, c in (("center_ref", self.center_ref), ("center_moving", self.center_moving)):
             if len(c) != 2 or not all(math.isfinite(float(v)) for v in c):
                 raise ValueError(f"{name} must be two finite numbers (x, y), got {c}")
@@ -260,3 +262,12 @@ def check_window(window_m: float, roi_m: float) -> None:
     if w > MAX_WINDOW_FRACTION * roi_m + 1e-12:
         raise ValueError(f"window_m = {w:g} m is more than a quarter of the ROI side ({roi_m:g} m): "
                          f"expected at most {MAX_WINDOW_FRACTION * roi_m:g} m (or a larger ROI)")
+
+
+def check_roi_cells(roi_m: float, resolution: float) -> None:
+    """The ROI side in cells (``roi_m`` / ``resolution``) must be at most :data:`MAX_ROI_CELLS`
+    (ValueError naming both numbers): the search's tables grow with its square."""
+    n = roi_m / resolution
+    if not n <= MAX_ROI_CELLS:
+        raise ValueError(f"an ROI of {roi_m:g} m is {n:.0f} cells a side at {resolution:g} m per cell: expected "
+                         f"at most {MAX_ROI_CELLS} (a smaller ROI, or a coarser map)")

@@ -20,6 +20,21 @@ import numpy as np
 from ..grid import OCCUPIED_S
 from .problem import fine_angles, wrap_deg
 
+REMAP_MAX_COLS = 32_000  # cv2.remap asserts fewer than SHRT_MAX (32,767) columns and rows in its maps
+
+
+def _remap_mean(field: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
+    """Row means of ``field`` read bilinearly at (``mx``, ``my``) (pixel coordinates, 0 outside), the
+    points in column blocks of at most :data:`REMAP_MAX_COLS`: a dense ROI has more occupied cells than
+    one ``cv2.remap`` call takes (issue 26)."""
+    total = np.zeros(mx.shape[0], np.float64)
+    for j in range(0, mx.shape[1], REMAP_MAX_COLS):
+        out = cv2.remap(field, np.ascontiguousarray(mx[:, j:j + REMAP_MAX_COLS]),
+                        np.ascontiguousarray(my[:, j:j + REMAP_MAX_COLS]), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        total += out.astype(np.float64).sum(axis=1)
+    return total / mx.shape[1]
+
 
 def square_crop(grid, center, reach: float):
     """The cells of ``grid`` within ``reach`` metres of ``center`` on each axis (unknown outside the grid)
@@ -116,9 +131,7 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
         base = cr - org
         mx = ((cs * p[:, 0] - sn * p[:, 1]) + (base[0] + c[:, 1:2])) / res - 0.5  # crop pixel coordinates
         my = ((sn * p[:, 0] + cs * p[:, 1]) + (base[1] + c[:, 2:3])) / res - 0.5
-        out = cv2.remap(field, mx.astype(np.float32), my.astype(np.float32), cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        return out.astype(np.float64).mean(axis=1)
+        return _remap_mean(field, mx.astype(np.float32), my.astype(np.float32))
 
     x = np.array([theta0, float(t0[0]), float(t0[1])])
     lo = np.array([theta0 - REFINE_MAX_DEG, t0[0] - REFINE_MAX_CELLS * res, t0[1] - REFINE_MAX_CELLS * res])

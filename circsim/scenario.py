@@ -26,7 +26,7 @@ import yaml
 
 from merger.cli import MAX_ROI_M
 from merger.mapio import load_yaml, one_line
-from merger.search import MAX_WINDOW_FRACTION, SEARCH_METHODS
+from merger.search import MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
 
 from .laser import LaserConfig
 from .network import NetworkConfig
@@ -179,6 +179,9 @@ class MergerSettings:
     strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
         thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
         the team assembled along a maximum spanning tree of the verified pairs).
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0, so no optimum rests on a handful of cells (``merger.MergeParams.roi_min_support``;
+        0: the thesis's measure as defined).
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.shared`). Off (default): every
@@ -191,6 +194,7 @@ class MergerSettings:
     verification: str = "whole_map"
     nu_min: float = 0.5
     min_support: int = 200
+    roi_min_support: int = ROI_MIN_SUPPORT
     score_min: float = 0.5
     window_m: float = 0.5
     refine: bool = True
@@ -365,6 +369,7 @@ _MERGER = section(MergerSettings, {
     "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
+    "roi_min_support": integer(ge=0),
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
     "combine_orders": boolean,
     "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),

@@ -30,7 +30,7 @@ from .search import MAX_WINDOW_FRACTION, SEARCH_METHODS
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
 from .transform import canvas, paste, rotation, warp_grid
-from .verify import verify
+from .verify import no_evidence, verify
 
 MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
 
@@ -99,6 +99,10 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
                    help=f"verification threshold in [-1, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
                    help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
+    p.add_argument("--roi-min-support", type=int, default=d.roi_min_support, metavar="CELLS",
+                   help=f"the search's support floor: placements whose ROI agr̃+dis is below it score 0, so no "
+                        f"answer rests on a handful of cells; an integer >= 0 (default {d.roi_min_support}; 0: "
+                        f"the thesis's measure)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
 
 
@@ -156,10 +160,12 @@ def params_from(args) -> MergeParams:
         raise UsageError(f"--nu-min: expected a number in [-1, 1], got {args.nu_min:g}")
     if args.min_support < 0:
         raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
+    if args.roi_min_support < 0:
+        raise UsageError(f"--roi-min-support: expected an integer >= 0, got {args.roi_min_support}")
     try:
         return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
                            min_support=args.min_support, window_m=args.window, refine=args.refine,
-                           combine_orders=args.combine_orders)
+                           combine_orders=args.combine_orders, roi_min_support=args.roi_min_support)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
 
@@ -174,14 +180,24 @@ def cmd_align(args) -> int:
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
     ref, mov = load_map(args.ref), load_map(args.moving)
     al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
-               method=params.method, window_m=params.window_m, refine=params.refine)
+               method=params.method, window_m=params.window_m, refine=params.refine,
+               roi_min_support=params.roi_min_support)
+    if not al.has_evidence:
+        why = no_evidence(al, params.roi_min_support)
+        if args.json:
+            print(json.dumps({**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving),
+                              "center_ref": list(c_ref), "center_moving": list(c_mov), "verdict": "no_evidence",
+                              "reason": why}))
+        else:
+            print(f"no evidence  {why}")
+        return 1
     tx, ty = al.translation_m
     c_target = (c_ref[0] + tx, c_ref[1] + ty)  # where MOVING's center lands in REF's frame
     cv = canvas(ref, [(mov, al.theta_deg, c_mov)], c_target)
     v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_target, cv).states,
                nu_min=params.nu_min, min_support=params.min_support)
     out = {**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
-           "center_moving": list(c_mov), "verification": {"nu": v.nu, "agree": v.counts.agree,
+           "center_moving": list(c_mov), "verdict": "accepted" if v.passed else "rejected", "verification": {"nu": v.nu, "agree": v.counts.agree,
                                                          "disagree": v.counts.disagree, "support": v.support,
                                                          "nu_min": params.nu_min,
                                                          "min_support": params.min_support,

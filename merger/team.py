@@ -27,10 +27,10 @@ from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .memo import Memo, map_key
 from .pool import parallel_map
-from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
+from .search import ROI_MIN_SUPPORT, Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
-from .verify import Verification, pairwise, verify
+from .verify import Verification, no_evidence, pairwise, verify
 
 VERIFICATIONS = ("whole_map", "roi_score")
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
@@ -58,6 +58,10 @@ class MergeParams:
         thesis's rotation-only search. At most a quarter of ``roi_m``.
     refine : refine θ and t below the search grid (:func:`merger.search.refine_alignment`); off
         reproduces the thesis's 0.1° grid answer exactly.
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0 (:class:`merger.search.RotationProblem`), so a wide window cannot find an
+        optimum resting on a handful of cells (on sparse real maps with W ≥ 1.5 m, placements on 2–22
+        cells scored ≈ 1 above the true one). 50 cells = 2.5 m of wall at 5 cm.
     combine_orders : the chosen placement is the mean of the accepted orders that agree with the
         highest-Σν order within 10° and 0.2 m on every map, when that mean passes whole-map verification
         (:func:`_combine`); off: the highest-Σν order's own placement (the thesis's rule). With the
@@ -76,6 +80,7 @@ class MergeParams:
     refine: bool = True
     ambiguity_margin: float | None = None
     combine_orders: bool = True
+    roi_min_support: int = ROI_MIN_SUPPORT
 
     @property
     def margin(self) -> float:
@@ -97,6 +102,9 @@ class MergeParams:
         if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
                 or self.min_support < 0:
             raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
+        if isinstance(self.roi_min_support, bool) or not isinstance(self.roi_min_support, (int, np.integer)) \
+                or self.roi_min_support < 0:
+            raise ValueError(f"roi_min_support must be an integer >= 0, got {self.roi_min_support!r}")
         check_window(self.window_m, self.roi_m)
         m = self.ambiguity_margin
         if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
@@ -236,7 +244,8 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     if ref.version is None or mov.version is None:
         return None
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
-            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin)
+            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin,
+            params.roi_min_support)
 
 
 Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
@@ -325,7 +334,7 @@ def _source_center(center, theta: float, t) -> tuple[float, float]:
 def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:
     """The search problem of ``mov`` onto ``ref`` (a map or a superposition) with ``params``."""
     return RotationProblem(ref, mov.grid, tuple(ref_center), tuple(mov.center), params.roi_m, params.measure,
-                           params.window_m, params.refine)
+                           params.window_m, params.refine, params.roi_min_support)
 
 
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
@@ -405,7 +414,8 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
             ok = al.score >= params.score_min
             checks[name] = Verification(al.score, al.counts, ok, "" if ok else
                                         f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
-    failed = [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
+    failed = [no_evidence(al, params.roi_min_support, name) for name, al in steps if not al.has_evidence]
+    failed += [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
     return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: place0[k][0] for k in order},
                        steps, checks, not failed, "; ".join(failed),
                        {maps[k].name: place0[k][1] for k in order})

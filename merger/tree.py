@@ -63,7 +63,7 @@ from .team import (
     problem_for,
 )
 from .transform import overlap, rotation
-from .verify import Verification, pairwise, verify
+from .verify import Verification, no_evidence, pairwise, verify
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,7 +105,9 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
     al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
     ver = check(al)
-    if amb is not None and not amb.used:
+    if not al.has_evidence:
+        ver = Verification(ver.nu, ver.counts, False, no_evidence(al, params.roi_min_support, label))
+    elif amb is not None and not amb.used:
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
 

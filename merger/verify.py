@@ -39,6 +39,15 @@ def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
     return Verification(s.value, s.counts, True)
 
 
+def no_evidence(al, floor: int, label: str = "") -> str:
+    """Why an alignment without evidence (``al.has_evidence`` false) is not an answer."""
+    what = f" for {label}" if label else ""
+    c = al.counts
+    return (f"no evidence{what}: no placement in the {al.roi_m:g} m ROI reaches {floor} cells of support "
+            f"(agr̃ + dis) with an agreeing cell (best: agree {c.agree}, disagree {c.disagree}); is an "
+            f"occupied cell near the center in both maps?")
+
+
 def pairwise(layers: list[np.ndarray]) -> list[tuple[int, int]]:
     """Index pairs (i, j), i < j, of a list of aligned layers."""
     n = len(layers)

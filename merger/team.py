@@ -30,9 +30,10 @@ from .pool import parallel_map
 from .search import ROI_MIN_SUPPORT, Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
-from .verify import Verification, no_evidence, pairwise, verify
+from .evidence import CONTRAST_MIN, TOLERANCE_M
+from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
-VERIFICATIONS = ("whole_map", "roi_score")
+VERIFICATIONS = ("whole_map", "roi_score", "contrast")
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
 AMBIGUOUS_DEG = 10.0  # ... elsewhere: more than this apart in angle
 AMBIGUOUS_M = 0.2  # ... or more than this apart in translation
@@ -47,7 +48,11 @@ class MergeParams:
     method : search method name (see :data:`merger.search.SEARCH_METHODS`).
     verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
         method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
-        cross-correlation method, which had only a threshold on the correlation coefficient).
+        cross-correlation method, which had only a threshold on the correlation coefficient); "contrast" —
+        for maps from independent runs (real maps): every pair's whole-map fit within ``tolerance_m`` must
+        stand at least ``contrast_min`` times above its best rival placement at least 10° away, on at
+        least ``min_support`` occupied cells (:mod:`merger.evidence`; measured on real maps in
+        docs/merging-real-maps.md). Orders are still ranked by Σν.
     ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted
         order places some map more than 10° or 0.2 m away from the chosen order's placement is rejected as
         ambiguous unless the chosen order's mean ν exceeds that order's by at least this margin. A wider
@@ -81,6 +86,8 @@ class MergeParams:
     ambiguity_margin: float | None = None
     combine_orders: bool = True
     roi_min_support: int = ROI_MIN_SUPPORT
+    tolerance_m: float = TOLERANCE_M
+    contrast_min: float = CONTRAST_MIN
 
     @property
     def margin(self) -> float:
@@ -106,6 +113,10 @@ class MergeParams:
                 or self.roi_min_support < 0:
             raise ValueError(f"roi_min_support must be an integer >= 0, got {self.roi_min_support!r}")
         check_window(self.window_m, self.roi_m)
+        for name, lo in (("tolerance_m", 0.0), ("contrast_min", 0.0)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         m = self.ambiguity_margin
         if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
             raise ValueError(f"ambiguity_margin must be a number in [0, 1] (or None), got {m!r}")
@@ -317,9 +328,15 @@ class Warps:
         """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
         key = (i, pi[0], tuple(pi[1]), j, pj[0], tuple(pj[1]))
         if key not in self._checks:
-            a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
-            self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
-                                       label=f"{self.maps[i].name}|{self.maps[j].name}")
+            label = f"{self.maps[i].name}|{self.maps[j].name}"
+            if params.verification == "contrast":
+                self._checks[key] = verify_contrast(
+                    self.get(0, i, *pi), self.get(0, j, *pj), shifted(self.maps[0].center, pj[1]),
+                    tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
+                    min_support=params.min_support, label=label)
+            else:
+                a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
+                self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
         return self._checks[key]
 
 
@@ -405,7 +422,7 @@ def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
 
 def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
                   warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
-    if params.verification == "whole_map":
+    if params.verification in ("whole_map", "contrast"):
         checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
     else:
@@ -464,7 +481,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         ambiguity = _ambiguity(results, accepted, best, params.margin) or _beyond(results[best])
         chosen = None if ambiguity else results[best]
     place = aligned[best][0] if chosen is not None else None
-    if chosen is not None and params.combine_orders and params.verification == "whole_map":
+    if chosen is not None and params.combine_orders and params.verification in ("whole_map", "contrast"):
         combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, orders[best], params, warps)
         if combined is not None:
             results[best], place = combined

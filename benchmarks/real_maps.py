@@ -274,6 +274,29 @@ def run_case(case: Case, params: MergeParams, probes: bool):
     return row
 
 
+def aphill_team(data: Path, roi: float, verification: str) -> str:
+    """The four A.P. Hill robots merged as one team (strategy auto: the tree for four maps), the center a
+    point all four saw (their frames are identity within APHILL_TOL); correct = every map within it."""
+    d = data / "carpin-ucmerced"
+    paths = [str(d / f"aphill_robot{i}.yaml") for i in range(4)]
+    g = [grid(p) for p in paths]
+    xy = occupied_xy(g[0])
+    seen = np.ones(len(xy), bool)
+    for other in g[1:]:
+        seen &= near_occupied(other, xy, 3.0)
+    both = xy[seen]
+    c = tuple(float(v) for v in both[np.argmin(((both - both.mean(0)) ** 2).sum(1))])
+    maps = [MapInput(f"r{i}", gi, c) for i, gi in enumerate(g)]
+    t0 = time.perf_counter()
+    res = merge_team(maps, MergeParams(roi_m=roi, verification=verification))
+    ms = (time.perf_counter() - t0) * 1e3
+    top = res.top
+    ok = all(abs(angle_diff_deg(top.theta_deg[m.name], 0.0)) <= APHILL_TOL[0]
+             and math.hypot(*top.translation(m.name)) <= APHILL_TOL[1] for m in maps)
+    return (f"aphill four-robot team, ROI {roi:g} m, {verification}: accepted {res.accepted}, correct {ok}, "
+            f"{ms:.0f} ms" + ("" if res.accepted else f" ({res.reason[:160]})"))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DATA)
@@ -306,6 +329,10 @@ def main(argv=None) -> int:
         args.json.write_text(json.dumps(rows, indent=1))
     print()
     print(summary(rows))
+    if "aphill" in args.sets and not args.limit:
+        for roi in rois:
+            for verification in ("whole_map", "contrast"):
+                print(aphill_team(args.data, roi, verification), flush=True)
     return 0
 
 

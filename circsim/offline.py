@@ -114,11 +114,11 @@ def method_params(sc: Scenario, method: str, settings: OfflineSettings) -> Merge
     if method == "ncc":
         return MergeParams(roi_m=m.roi_m, measure="ncc", method=search, verification="roi_score",
                            score_min=settings.ncc_score_min, window_m=m.window_m, refine=m.refine,
-                           ambiguity_margin=m.ambiguity_margin)
+                           ambiguity_margin=m.ambiguity_margin, roi_min_support=m.roi_min_support)
     if method == "similarity":
         return MergeParams(roi_m=m.roi_m, measure="similarity", method=search, verification="whole_map",
                            nu_min=m.nu_min, min_support=m.min_support, window_m=m.window_m, refine=m.refine,
-                           ambiguity_margin=m.ambiguity_margin)
+                           ambiguity_margin=m.ambiguity_margin, roi_min_support=m.roi_min_support)
     raise ValueError(f"unknown offline method {method!r}; expected one of {', '.join(METHODS)}")
 
 

@@ -25,8 +25,9 @@ import numpy as np
 import yaml
 
 from merger.cli import MAX_ROI_M, MIN_ROI_CELLS
+from merger.evidence import CONTRAST_MIN, TOLERANCE_M
 from merger.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
-from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS
+from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
 
 from .laser import LaserConfig
 from .network import NetworkConfig
@@ -181,6 +182,12 @@ class MergerSettings:
     strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
         thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
         the team assembled along a maximum spanning tree of the verified pairs).
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0, so no optimum rests on a handful of cells (``merger.MergeParams.roi_min_support``;
+        0: the thesis's measure as defined).
+    tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
+        agree, and the placement's whole-map fit must stand this many times above its best rival
+        (``merger.MergeParams``; :mod:`merger.evidence`).
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.shared`). Off (default): every
@@ -193,6 +200,9 @@ class MergerSettings:
     verification: str = "whole_map"
     nu_min: float = 0.5
     min_support: int = 200
+    roi_min_support: int = ROI_MIN_SUPPORT
+    tolerance_m: float = TOLERANCE_M
+    contrast_min: float = CONTRAST_MIN
     score_min: float = 0.5
     window_m: float = 0.5
     refine: bool = True
@@ -367,8 +377,9 @@ _NETWORK = section(NetworkConfig, {"period_s": _POS, "latency_s": _NONNEG, "jitt
                                    "loss": number(ge=0, lt=1)})
 _MERGER = section(MergerSettings, {
     "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
-    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score"),
+    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score", "contrast"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
+    "roi_min_support": integer(ge=0), "tolerance_m": _POS, "contrast_min": _POS,
     "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
     "combine_orders": boolean,
     "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),

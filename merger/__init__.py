@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from .online import MapMessage, TeamMerger
-from .search import SEARCH_METHODS, Alignment, RotationProblem, register_method, search
+from .search import ROI_MIN_SUPPORT, SEARCH_METHODS, Alignment, RotationProblem, register_method, search
 from .similarity import Counts, Similarity, birk_carpin, ncc, similarity_index
 from .superpose import fuse, superpose
 from .team import MapInput, MergeParams, OrderResult, TeamMergeResult, merge_orders, merge_team
@@ -27,7 +27,7 @@ __all__ = [
 
 def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = 8.0,
           measure: str = "similarity", method: str = "fast", window_m: float = 0.5,
-          refine: bool = True) -> Alignment:
+          refine: bool = True, roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
     """Find the rotation θ (and translation t) of ``moving`` about its center onto ``ref``.
 
     Parameters
@@ -45,6 +45,9 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
         rotation-only search; at most roi_m / 4.
     refine : refine θ and t below the search grid (plateau middle or parabolic peak fit); False gives
         the grid answer (θ on the thesis's 0.1° grid, t in whole cells).
+    roi_min_support : the support floor, cells: placements whose ROI support agr̃ + dis is below it
+        score 0, so no answer rests on a handful of cells; 0 searches the measure as the thesis defines it.
+        An answer with ``score`` 0 means no evidence: no placement reached the floor with an agreeing cell.
 
     Returns
     -------
@@ -54,7 +57,7 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
     """
     cm = center_ref if center_moving is None else center_moving
     problem = RotationProblem(ref, moving, tuple(map(float, center_ref)), tuple(map(float, cm)), roi_m, measure,
-                              window_m, refine)
+                              window_m, refine, roi_min_support)
     return search(problem, method)
 
 

@@ -36,7 +36,7 @@ from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_ro
 from .similarity import MEASURES
 from .team import MapInput, MergeParams, merge_team
 from .transform import canvas, paste, rotation, warp_grid
-from .verify import verify
+from .verify import no_evidence, verify, verify_contrast
 
 MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
 MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
@@ -142,6 +142,18 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
                    help=f"verification threshold in [-1, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
                    help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
+    p.add_argument("--verification", choices=("whole_map", "contrast"), default=d.verification,
+                   help="whole_map: whole-map ω̃ ≥ --nu-min (the thesis); contrast: for maps from independent runs "
+                        "(real maps), the whole-map fit within --tolerance must stand --contrast-min times above "
+                        f"the best rival placement (default {d.verification})")
+    p.add_argument("--tolerance", type=float, default=d.tolerance_m, metavar="M",
+                   help=f"contrast: walls this close count as agreeing, metres (default {d.tolerance_m})")
+    p.add_argument("--contrast-min", type=float, default=d.contrast_min,
+                   help=f"contrast: the fit over the best rival's it needs (default {d.contrast_min})")
+    p.add_argument("--roi-min-support", type=int, default=d.roi_min_support, metavar="CELLS",
+                   help=f"the search's support floor: placements whose ROI agr̃+dis is below it score 0, so no "
+                        f"answer rests on a handful of cells; an integer >= 0 (default {d.roi_min_support}; 0: "
+                        f"the thesis's measure)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
 
 
@@ -204,12 +216,28 @@ def params_from(args) -> MergeParams:
         raise UsageError(f"--nu-min: expected a number in [-1, 1], got {args.nu_min:g}")
     if args.min_support < 0:
         raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
+    for opt, v in (("--tolerance", args.tolerance), ("--contrast-min", args.contrast_min)):
+        if not (math.isfinite(v) and v > 0):
+            raise UsageError(f"{opt}: expected a number > 0, got {v:g}")
+    if args.roi_min_support < 0:
+        raise UsageError(f"--roi-min-support: expected an integer >= 0, got {args.roi_min_support}")
     try:
         return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
                            min_support=args.min_support, window_m=args.window, refine=args.refine,
-                           combine_orders=args.combine_orders)
+                           combine_orders=args.combine_orders, roi_min_support=args.roi_min_support,
+                           verification=args.verification, tolerance_m=args.tolerance,
+                           contrast_min=args.contrast_min)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
+
+
+def contrast_dict(v) -> dict:
+    """The contrast evidence of a verification as JSON fields (none for the thesis's rule)."""
+    k = v.contrast
+    if k is None:
+        return {}
+    return {"contrast": k.contrast, "fit": k.best, "rival_fit": k.rival, "rival_offset_deg": k.rival_at[0],
+            "refined_offset": {"theta_deg": k.best_at[0], "cells": [k.best_at[1], k.best_at[2]]}}
 
 
 def _xy(v) -> str:
@@ -225,18 +253,34 @@ def cmd_align(args) -> int:
     check_center(ref, c_ref, params.roi_m, "--center", args.ref)
     check_center(mov, c_mov, params.roi_m, "--center-moving" if args.center_moving else "--center", args.moving)
     al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
-               method=params.method, window_m=params.window_m, refine=params.refine)
+               method=params.method, window_m=params.window_m, refine=params.refine,
+               roi_min_support=params.roi_min_support)
+    if not al.has_evidence:
+        why = no_evidence(al, params.roi_min_support)
+        if args.json:
+            print(json.dumps({**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving),
+                              "center_ref": list(c_ref), "center_moving": list(c_mov), "verdict": "no_evidence",
+                              "reason": why}))
+        else:
+            print(f"no evidence  {why}")
+        return 1
     tx, ty = al.translation_m
     c_target = (c_ref[0] + tx, c_ref[1] + ty)  # where MOVING's center lands in REF's frame
     cv = canvas(ref, [(mov, al.theta_deg, c_mov)], c_target)
-    v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_target, cv).states,
-               nu_min=params.nu_min, min_support=params.min_support)
+    if params.verification == "contrast":
+        v = verify_contrast(paste(ref, cv), warp_grid(mov, al.theta_deg, c_mov, c_target, cv), c_target,
+                            tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
+                            min_support=params.min_support)
+    else:
+        v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_target, cv).states,
+                   nu_min=params.nu_min, min_support=params.min_support)
     out = {**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
-           "center_moving": list(c_mov), "verification": {"nu": v.nu, "agree": v.counts.agree,
+           "center_moving": list(c_mov), "verdict": "accepted" if v.passed else "rejected", "verification": {"nu": v.nu, "agree": v.counts.agree,
                                                          "disagree": v.counts.disagree, "support": v.support,
                                                          "nu_min": params.nu_min,
                                                          "min_support": params.min_support,
-                                                         "accepted": v.passed, "reason": v.reason}}
+                                                         "accepted": v.passed, "reason": v.reason,
+                                                         **contrast_dict(v)}}
     if args.json:
         print(json.dumps(out))
     else:
@@ -259,7 +303,12 @@ def cmd_align(args) -> int:
                  "   (an upper bound: the search's envelope)" if al.evidence.get("runner_up") == "upper_envelope"
                  else "   (approximate)"))
         verdict = "ACCEPTED" if v.passed else f"REJECTED ({v.reason})"
-        print(f"verify       ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
+        if v.contrast is not None:
+            k = v.contrast
+            print(f"verify       contrast {k.contrast:.2f} (fit {k.best:.3f} vs rival {k.rival:.3f} at "
+                  f"{(al.theta_deg + k.rival_at[0]) % 360:.0f} deg; whole-map ν {v.nu:.3f}): {verdict}")
+        else:
+            print(f"verify       ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
     return 0 if v.passed else 1
 
 

@@ -27,12 +27,13 @@ from .ambiguity import PairAmbiguity, resolve
 from .grid import OccupancyGrid
 from .memo import Memo, map_key
 from .pool import parallel_map
-from .search import Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
+from .search import ROI_MIN_SUPPORT, Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
-from .verify import Verification, pairwise, verify
+from .evidence import CONTRAST_MIN, TOLERANCE_M
+from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
-VERIFICATIONS = ("whole_map", "roi_score")
+VERIFICATIONS = ("whole_map", "roi_score", "contrast")
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
 AMBIGUOUS_DEG = 10.0  # ... elsewhere: more than this apart in angle
 AMBIGUOUS_M = 0.2  # ... or more than this apart in translation
@@ -47,7 +48,11 @@ class MergeParams:
     method : search method name (see :data:`merger.search.SEARCH_METHODS`).
     verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
         method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
-        cross-correlation method, which had only a threshold on the correlation coefficient).
+        cross-correlation method, which had only a threshold on the correlation coefficient); "contrast" —
+        for maps from independent runs (real maps): every pair's whole-map fit within ``tolerance_m`` must
+        stand at least ``contrast_min`` times above its best rival placement at least 10° away, on at
+        least ``min_support`` occupied cells (:mod:`merger.evidence`; measured on real maps in
+        docs/merging-real-maps.md). Orders are still ranked by Σν.
     ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted
         order places some map more than 10° or 0.2 m away from the chosen order's placement is rejected as
         ambiguous unless the chosen order's mean ν exceeds that order's by at least this margin. A wider
@@ -58,6 +63,10 @@ class MergeParams:
         thesis's rotation-only search. At most a quarter of ``roi_m``.
     refine : refine θ and t below the search grid (:func:`merger.search.refine_alignment`); off
         reproduces the thesis's 0.1° grid answer exactly.
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0 (:class:`merger.search.RotationProblem`), so a wide window cannot find an
+        optimum resting on a handful of cells (on sparse real maps with W ≥ 1.5 m, placements on 2–22
+        cells scored ≈ 1 above the true one). 50 cells = 2.5 m of wall at 5 cm.
     combine_orders : the chosen placement is the mean of the accepted orders that agree with the
         highest-Σν order within 10° and 0.2 m on every map, when that mean passes whole-map verification
         (:func:`_combine`); off: the highest-Σν order's own placement (the thesis's rule). With the
@@ -76,6 +85,9 @@ class MergeParams:
     refine: bool = True
     ambiguity_margin: float | None = None
     combine_orders: bool = True
+    roi_min_support: int = ROI_MIN_SUPPORT
+    tolerance_m: float = TOLERANCE_M
+    contrast_min: float = CONTRAST_MIN
 
     @property
     def margin(self) -> float:
@@ -97,7 +109,14 @@ class MergeParams:
         if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
                 or self.min_support < 0:
             raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
+        if isinstance(self.roi_min_support, bool) or not isinstance(self.roi_min_support, (int, np.integer)) \
+                or self.roi_min_support < 0:
+            raise ValueError(f"roi_min_support must be an integer >= 0, got {self.roi_min_support!r}")
         check_window(self.window_m, self.roi_m)
+        for name, lo in (("tolerance_m", 0.0), ("contrast_min", 0.0)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         m = self.ambiguity_margin
         if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
             raise ValueError(f"ambiguity_margin must be a number in [0, 1] (or None), got {m!r}")
@@ -236,7 +255,8 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     if ref.version is None or mov.version is None:
         return None
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
-            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin)
+            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin,
+            params.roi_min_support)
 
 
 Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
@@ -308,9 +328,15 @@ class Warps:
         """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
         key = (i, pi[0], tuple(pi[1]), j, pj[0], tuple(pj[1]))
         if key not in self._checks:
-            a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
-            self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support,
-                                       label=f"{self.maps[i].name}|{self.maps[j].name}")
+            label = f"{self.maps[i].name}|{self.maps[j].name}"
+            if params.verification == "contrast":
+                self._checks[key] = verify_contrast(
+                    self.get(0, i, *pi), self.get(0, j, *pj), shifted(self.maps[0].center, pj[1]),
+                    tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
+                    min_support=params.min_support, label=label)
+            else:
+                a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
+                self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
         return self._checks[key]
 
 
@@ -325,7 +351,7 @@ def _source_center(center, theta: float, t) -> tuple[float, float]:
 def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:
     """The search problem of ``mov`` onto ``ref`` (a map or a superposition) with ``params``."""
     return RotationProblem(ref, mov.grid, tuple(ref_center), tuple(mov.center), params.roi_m, params.measure,
-                           params.window_m, params.refine)
+                           params.window_m, params.refine, params.roi_min_support)
 
 
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
@@ -396,7 +422,7 @@ def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
 
 def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
                   warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
-    if params.verification == "whole_map":
+    if params.verification in ("whole_map", "contrast"):
         checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
     else:
@@ -405,7 +431,8 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
             ok = al.score >= params.score_min
             checks[name] = Verification(al.score, al.counts, ok, "" if ok else
                                         f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
-    failed = [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
+    failed = [no_evidence(al, params.roi_min_support, name) for name, al in steps if not al.has_evidence]
+    failed += [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
     return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: place0[k][0] for k in order},
                        steps, checks, not failed, "; ".join(failed),
                        {maps[k].name: place0[k][1] for k in order})
@@ -454,7 +481,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         ambiguity = _ambiguity(results, accepted, best, params.margin) or _beyond(results[best])
         chosen = None if ambiguity else results[best]
     place = aligned[best][0] if chosen is not None else None
-    if chosen is not None and params.combine_orders and params.verification == "whole_map":
+    if chosen is not None and params.combine_orders and params.verification in ("whole_map", "contrast"):
         combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, orders[best], params, warps)
         if combined is not None:
             results[best], place = combined

@@ -61,9 +61,10 @@ from .team import (
     _pair_key,
     place_on_frame0,
     problem_for,
+    shifted,
 )
 from .transform import overlap, rotation
-from .verify import Verification, pairwise, verify
+from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +96,10 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     label = f"{maps[i].name}|{maps[j].name}"
 
     def check(al: Alignment) -> Verification:
+        if params.verification == "contrast":
+            return verify_contrast(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m),
+                                   shifted(maps[i].center, al.translation_m), tolerance_m=params.tolerance_m,
+                                   contrast_min=params.contrast_min, min_support=params.min_support, label=label)
         if params.verification == "whole_map":
             a, b = overlap(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m))
             return verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
@@ -105,7 +110,9 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
     al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
     ver = check(al)
-    if amb is not None and not amb.used:
+    if not al.has_evidence:
+        ver = Verification(ver.nu, ver.counts, False, no_evidence(al, params.roi_min_support, label))
+    elif amb is not None and not amb.used:
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
 
@@ -333,7 +340,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     linked = {(min(a, b), max(a, b)) for a, b in links}
     for a, b in pairwise(sub):
         ij = (min(order[a], order[b]), max(order[a], order[b]))
-        v = sw.check(a, sub_place[a], b, sub_place[b], params) if params.verification == "whole_map" \
+        v = sw.check(a, sub_place[a], b, sub_place[b], params) if params.verification != "roi_score" \
             else pairs[ij].verification
         checks[f"{sub[a].name}|{sub[b].name}"] = v
         if ij in linked and pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly

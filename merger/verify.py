@@ -2,7 +2,9 @@
 
 An alignment is accepted when ω̃ computed on the whole aligned maps is at least ``nu_min`` *and* its
 support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
-hypothesis is rejected in that case (favouring false negatives over false merges).
+hypothesis is rejected in that case (favouring false negatives over false merges). For maps from
+independent runs (real maps), :func:`verify_contrast` asks instead how far the placement's whole-map
+fit stands above its rivals' (:mod:`merger.evidence`).
 """
 
 from __future__ import annotations
@@ -11,7 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .evidence import Contrast, contrast
+from .grid import OccupancyGrid
 from .similarity import Counts, similarity_index
+from .transform import overlap
 
 
 @dataclass(frozen=True)
@@ -20,6 +25,7 @@ class Verification:
     counts: Counts
     passed: bool
     reason: str = ""
+    contrast: Contrast | None = None  # the contrast evidence (verification "contrast", :mod:`merger.evidence`)
 
     @property
     def support(self) -> int:
@@ -37,6 +43,32 @@ def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
     if s.value < nu_min:
         return Verification(s.value, s.counts, False, f"{name} = {s.value:.3f} < ν_min {nu_min:g}")
     return Verification(s.value, s.counts, True)
+
+
+def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: float, contrast_min: float,
+                    min_support: int, label: str = "") -> Verification:
+    """The contrast rule (:mod:`merger.evidence`) for b placed onto a (grids on one lattice, rotations about
+    ``pivot``); ``nu`` and ``counts`` are ω̃ on the overlap, as in :func:`verify`, for the record."""
+    s = similarity_index(*overlap(a, b))
+    k = contrast(a, b, pivot, tolerance_m)
+    name = f" of {label}" if label else ""
+    if k.support < min_support:
+        return Verification(s.value, s.counts, False, f"support{name} = {k.support} occupied cells on known "
+                            f"cells < min_support {min_support}", k)
+    if k.contrast < contrast_min:
+        return Verification(s.value, s.counts, False,
+                            f"contrast{name} = {k.contrast:.2f} < contrast_min {contrast_min:g} (fit {k.best:.3f}, "
+                            f"rival {k.rival:.3f} at {k.rival_at[0]:.0f}°)", k)
+    return Verification(s.value, s.counts, True, "", k)
+
+
+def no_evidence(al, floor: int, label: str = "") -> str:
+    """Why an alignment without evidence (``al.has_evidence`` false) is not an answer."""
+    what = f" for {label}" if label else ""
+    c = al.counts
+    return (f"no evidence{what}: no placement in the {al.roi_m:g} m ROI reaches {floor} cells of support "
+            f"(agr̃ + dis) with an agreeing cell (best: agree {c.agree}, disagree {c.disagree}); is an "
+            f"occupied cell near the center in both maps?")
 
 
 def pairwise(layers: list[np.ndarray]) -> list[tuple[int, int]]:

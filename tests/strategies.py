@@ -61,4 +61,5 @@ def adversarial_problem(seed: int, measure: str, window: bool) -> RotationProble
     cr, cm = random_point(rng, g, mode), random_point(rng, h, mode)
     roi = float(rng.choice([0.6, 0.75, 0.8, 1.0]))
     w = float(rng.choice([0.05, 0.1, 0.15])) if window else 0.0
-    return RotationProblem(g, h, cr, cm, roi, measure, w)
+    floor = int(rng.choice([0, 0, 3, 25, 120]))  # the support floor: off, or biting some placements
+    return RotationProblem(g, h, cr, cm, roi, measure, w, min_support=floor)

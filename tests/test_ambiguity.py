@@ -99,7 +99,9 @@ def pillars_in_an_offset_room():
 def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_truth(pillars_in_an_offset_room,
                                                                                    window_m):
     maps, theta = pillars_in_an_offset_room
-    params = MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.05)
+    # the pillars' half turn rests on 47 cells of ROI support: below the default support floor (50) the
+    # search answers the truth directly; without the floor the ambiguity rule must find it
+    params = MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.05, roi_min_support=0)
     pr = pair_result(maps, 0, 1, params, Warps(maps))
     a = pr.ambiguity
     assert a is not None and a.used and a.verdict == "runner_up"
@@ -110,8 +112,12 @@ def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_tru
     for res in (merge_team(maps, params), merge_tree(maps, params)):
         assert res.accepted and near(res.chosen.theta_deg["Lyon"], theta, 0.5), res.reason
         assert [x.verdict for x in res.ambiguous] == ["runner_up"]
+    # with the default support floor: the truth, directly (rotation only: the half turn's 47 cells are no
+    # candidate) or through the rule (with the window a shifted half turn reaches the floor)
+    floored = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.05))
+    assert floored.accepted and near(floored.chosen.theta_deg["Lyon"], theta, 0.5), floored.reason
     # without the rule the ROI's best, the half turn, is the pair's answer and fails verification
-    off = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.0))
+    off = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.0, roi_min_support=0))
     assert not off.accepted and near(off.top.theta_deg["Lyon"], theta + 180.0, 1.0)
 
 

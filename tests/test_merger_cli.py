@@ -373,3 +373,14 @@ def test_overlay_picture_title_names_the_order_angles_nu_and_verdict(saved, tmp_
     g = load_map(tmp_path / "m.yaml")
     assert img.shape[1] >= 420 and img.shape[0] > 24  # upscaled and cropped, with its title and legend
     assert max(img.shape[:2]) <= 4 * max(g.shape) + 24 + 200
+
+
+def test_align_says_no_evidence_when_the_rois_hold_no_occupied_cell(tmp_path, capsys):
+    from merger.grid import FREE_S, OccupancyGrid
+
+    y, _ = save_map(OccupancyGrid(np.full((60, 60), FREE_S, np.uint8), 0.05, (-1.5, -1.5)), tmp_path / "empty.yaml")
+    rc = main(["align", str(y), str(y), "--center", "0,0", "--roi", "2", "--window", "0.2"])
+    out = capsys.readouterr().out
+    assert rc == 1 and out.startswith("no evidence") and "50 cells of support" in out
+    rc = main(["align", str(y), str(y), "--center", "0,0", "--roi", "2", "--window", "0.2", "--json"])
+    assert rc == 1 and json.loads(capsys.readouterr().out)["verdict"] == "no_evidence"

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from merger.grid import FREE_S, OccupancyGrid
+from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
 from merger.search import (
     RotationProblem,
     beyond_window,
@@ -62,6 +62,8 @@ def test_reference_equals_spec_and_fast_equals_reference(seed, measure, window):
     assert ref.runner_up == spec.runner_up or np.isnan(spec.runner_up[0])
     assert _key(fast) == _key(ref)
     assert fast.counts == ref.counts
+    # the support floor: an answer rests on at least min_support cells, or scores 0 (no evidence)
+    assert fast.score == 0 or fast.counts.support >= p.min_support
     # the envelope: above the reference's profile, never above the best coarse value; the runner-up exact
     assert np.all(fast.profile >= ref.profile)
     assert np.all(fast.profile <= ref.profile.max())
@@ -132,3 +134,36 @@ def test_clear_all_changes_no_answer():
     a = fast_search(p)
     clear_all()
     assert _key(fast_search(p)) == _key(a)
+
+
+def _specks(cells):
+    """A free 1.2 m square with occupied cells at ``cells`` (row, col)."""
+    st_ = np.full((24, 24), FREE_S, np.uint8)
+    for r, c in cells:
+        st_[r, c] = OCCUPIED_S
+    return OccupancyGrid(st_, 0.05, (-0.6, -0.6))
+
+
+@pytest.mark.parametrize("window", [0.0, 0.1])
+def test_the_support_floor_gives_no_answer_on_a_handful_of_cells_in_every_method(window):
+    """Three occupied cells against the same three: ω̃ = 1 without a floor (the degenerate optimum of
+    sparse maps and wide windows); with a floor above their support every method answers score 0 and
+    says it has no evidence (40: more than any placement's support, a cell being read by at most four
+    lattice points); with a floor at their support the placement stands."""
+    g = _specks([(12, 12), (12, 13), (15, 9)])
+    for floor, want in ((0, 1.0), (3, 1.0), (40, 0.0)):
+        p = RotationProblem(g, g, (0.0, 0.0), (0.0, 0.0), 1.0, "similarity", window, min_support=floor)
+        answers = [spec_search(p), reference_search(p), fast_search(p)]
+        assert {_key(a) for a in answers} == {_key(answers[0])}, floor
+        assert answers[0].score == want and answers[0].has_evidence == (want > 0), floor
+
+
+def test_merge_cycles_and_align_call_an_roi_without_evidence_so():
+    from merger import MapInput, MergeParams, align, merge_team
+
+    empty = OccupancyGrid(np.full((40, 40), FREE_S, np.uint8), 0.05, (-1.0, -1.0))
+    al = align(empty, empty, center_ref=(0.0, 0.0), roi_m=1.0, window_m=0.1)
+    assert not al.has_evidence and al.score == 0.0
+    res = merge_team([MapInput("a", empty, (0.0, 0.0)), MapInput("b", empty, (0.0, 0.0))],
+                     MergeParams(roi_m=1.0, window_m=0.1, min_support=0))
+    assert not res.accepted and "no evidence" in res.reason

@@ -37,6 +37,7 @@ from .problem import (
     Alignment,
     angle_diff_deg,
     fine_angles,
+    floored,
     runner_up,
     wrap_deg,
 )
@@ -121,8 +122,8 @@ class Searcher:
         excl_a, excl_t = (np.zeros(angles.size, np.bool_), np.zeros(side * side, np.bool_)) if excl is None else excl
         inc = np.array([-np.inf, 0, 0, -1, 0, 0, 0, 0, 0], np.float64) if inc is None else inc
         env = np.full(angles.size, -np.inf)
-        ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0, budget],
-                         np.int64)
+        ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0, budget,
+                          p.floor], np.int64)
         nb, ne, self.complete = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
                                   p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
                                   angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
@@ -146,7 +147,7 @@ class Searcher:
                                     p.axes_c[3], p.ilo, p.ihi, p.jlo, p.jhi, p.n, True)
         sx = p.tsum[bi * p.side + ai]
         sy = no if p.measure.code == NCC else nf
-        return p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n), Counts(int(agr), int(dis), int(ff))
+        return p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n, p.floor), Counts(int(agr), int(dis), int(ff))
 
     def values(self, theta_deg: float, ts) -> np.ndarray:
         """Exact values at one angle for translations ``ts`` ((a, b) cells, within the window)."""
@@ -179,7 +180,7 @@ class Searcher:
                 ff = 0
             sx = p.tsum[bi * p.side + ai]
             sy = no if p.measure.code == NCC else nf
-            out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n)
+            out[x] = p.measure.value(agr, dis, ff, int(sx), int(sy), p.n * p.n, p.floor)
         return out
 
     def _polar(self):
@@ -216,7 +217,7 @@ class Searcher:
         jj = np.concatenate(jj) if jj else np.zeros(0, np.int64)
         agr, dis = angle_bounds((jj - m) * p.res, (ii - m) * p.res, may, nf, ring_w)
         sx = int(p.tsum[p.k * p.side + p.k])
-        return uppers(p.measure.code, agr, dis, sx, sx, self.angle_sums(), p.n * p.n)
+        return uppers(p.measure.code, p.floor, agr, dis, sx, sx, self.angle_sums(), p.n * p.n)
 
     def initial_regions(self):
         """The first regions of the coarse search with their bounds: rotation only, one per whole degree
@@ -386,7 +387,10 @@ def reference_beyond(problem, best_value: float, answer):
 
 def spec_search(problem) -> Alignment:
     """The definition in numpy: every angle × translation on whole ROIs (:mod:`merger.similarity`)."""
-    fn = measure_fn(problem.measure)
+    measure = measure_fn(problem.measure)
+
+    def fn(a, b):
+        return floored(measure(a, b), problem.min_support)
     ts = translation_offsets(problem.window_cells)
     refs = [problem.at(a, b).ref_roi() for a, b in ts]
     table = np.empty((len(ts), 360))
@@ -397,7 +401,7 @@ def spec_search(problem) -> Alignment:
     i_best, th_best = np.unravel_index(int(np.argmax(table)), table.shape)
     tc = ts[int(i_best)]
     angles = fine_angles(float(th_best))
-    sims = [fn(refs[int(i_best)], problem.moving_roi(float(a))) for a in angles]
+    sims = [fn(refs[int(i_best)], problem.moving_roi(float(a))) for a in angles]  # floored
     vals = np.array([x.value for x in sims])
     kf = int(np.argmax(vals))
     theta = wrap_deg(float(angles[kf]))

@@ -321,7 +321,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      occ_x, occ_y, mark, gen):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
-    ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget).
+    ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget, floor).
     angles/rot: the angles searched (degrees) and their R(−θ) entries; amask/tmask: the angles and
     translations allowed; rank: the tie rank of each translation index b·(2k+1) + a; tsum/asum: the
     measure's count tables per translation / per angle; excl_a × excl_t: elements excluded.
@@ -333,6 +333,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     res, res_m, mox, moy, mcx, mcy, half = ctx_f[0], ctx_f[1], ctx_f[2], ctx_f[3], ctx_f[4], ctx_f[5], ctx_f[6]
     n, k, code, mode, need_ff, sector0 = ctx_i[0], ctx_i[1], ctx_i[2], ctx_i[3], ctx_i[4], ctx_i[5]
     budget = ctx_i[6]  # the most regions bounded (0: no limit); beyond it the incumbent is returned as is
+    floor = ctx_i[7]  # the support floor (measures.value_of)
     side = 2 * k + 1
     n_ang = angles.size
     mh, mw = mstates.shape
@@ -438,7 +439,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             n_exact += 1
             sx = tsum[b0 * side + a0]
             sy = slot_counts[slot, 0] if code == NCC else slot_counts[slot, 1]
-            v = value_of(code, agr, dis, ff, sx, sy, n * n)
+            v = value_of(code, floor, agr, dis, ff, sx, sy, n * n)
             env[lo] = max(env[lo], v)
             if _before(v, kp, ks, inc[0], inc[1], inc[2]):
                 inc[0], inc[1], inc[2] = v, kp, ks
@@ -495,7 +496,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 for x in range(clo, chi + 1):
                     sy_lo = min(sy_lo, asum[x])
                     sy_hi = max(sy_hi, asum[x])
-            ub = upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
+            ub = upper_of(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
             if n_free_ids > 0:
                 cid = free_ids[n_free_ids - 1]
                 n_free_ids -= 1

@@ -8,6 +8,10 @@ Counts on an ROI pair: ``agr`` (occupied in both), ``dis`` (occupied in one, fre
 * ``birk_carpin`` (2.21): ω = (agr + ff) / (agr + ff + dis).
 * ``ncc``: normalized cross-correlation of the binary occupied images (the thesis's first method).
 
+The support floor (``floor``, cells): a placement whose support agr + dis is below it scores 0, whatever
+the measure, so that no optimum rests on a handful of cells (docs/design/search.md §3; 0: off, the
+thesis's measures as defined). Every method applies it, so they stay equal.
+
 Upper bounds (Lemma 4): ω̃ and ω grow with agr and ff and fall with dis; integers are exact in float64
 and a correctly rounded division is monotone, so ``value(agr_hi, dis_lo, ff_hi)`` ≥ every value in the
 region, as floats. NCC: numerator ≤ min(agr_hi, sx_hi, sy_hi) − sx_lo·sy_lo/N, denominator ≥ the
@@ -27,8 +31,11 @@ SIMILARITY, BIRK_CARPIN, NCC = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def value_of(code, agr, dis, ff, sx, sy, n_cells):
-    """The measure's value from counts — the same floats as :mod:`merger.similarity`."""
+def value_of(code, floor, agr, dis, ff, sx, sy, n_cells):
+    """The measure's value from counts — the same floats as :mod:`merger.similarity` — or 0 when the
+    support agr + dis is below ``floor``."""
+    if agr + dis < floor:
+        return 0.0
     if code == NCC:
         if n_cells == 0:
             return 0.0
@@ -49,14 +56,18 @@ def _v(s, nn):
 
 
 @njit(cache=True, nogil=True)
-def upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
+def upper_of(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
     """An upper bound of the measure over a region whose counts satisfy agr ≤ agr_hi, dis ≥ dis_lo and
     whose count tables lie in [sx_lo, sx_hi] (per translation) and [sy_lo, sy_hi] (per angle): occupied
-    points for NCC, free points for Birk–Carpin (ff ≤ both) (Lemma 4)."""
+    points for NCC, free points for Birk–Carpin (ff ≤ both) (Lemma 4). With a support floor F, ω̃ ≤
+    agr_hi / max(agr_hi + dis_lo, F) (increasing in agr_hi); the floor only lowers values to 0, and
+    every bound here is ≥ 0, so the other bounds stand as they are."""
     if code == SIMILARITY:
-        return value_of(code, agr_hi, dis_lo, 0, 0, 0, n_cells)
+        if agr_hi <= 0:
+            return 0.0
+        return agr_hi / max(agr_hi + dis_lo, floor)
     if code == BIRK_CARPIN:
-        return value_of(code, agr_hi, dis_lo, min(sx_hi, sy_hi), 0, 0, n_cells)
+        return value_of(code, 0, agr_hi, dis_lo, min(sx_hi, sy_hi), 0, 0, n_cells)
     nn = float(n_cells)
     a = min(agr_hi, sx_hi, sy_hi)
     num = a - float(sx_lo) * float(sy_lo) / nn
@@ -75,12 +86,12 @@ def upper_of(code, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
 
 
 @njit(cache=True, nogil=True)
-def uppers(code, agr_hi, dis_lo, sx_lo, sx_hi, sy, n_cells):
+def uppers(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy, n_cells):
     """:func:`upper_of` per angle: count bounds ``agr_hi``, ``dis_lo`` and ``sy`` per angle, ``sx`` in
     [sx_lo, sx_hi]."""
     out = np.empty(agr_hi.size)
     for x in range(agr_hi.size):
-        out[x] = upper_of(code, agr_hi[x], dis_lo[x], sx_lo, sx_hi, sy[x], sy[x], n_cells)
+        out[x] = upper_of(code, floor, agr_hi[x], dis_lo[x], sx_lo, sx_hi, sy[x], sy[x], n_cells)
     return out
 
 
@@ -93,8 +104,9 @@ class Measure:
     needs_free_agree: bool  # ff: a dense pass over the ROI
     sums: int  # the per-translation / per-angle count tables its bound uses: 0 none, 1 free, 2 occupied
 
-    def value(self, agr: int, dis: int, ff: int = 0, sx: int = 0, sy: int = 0, n_cells: int = 0) -> float:
-        return float(value_of(self.code, agr, dis, ff, sx, sy, n_cells))
+    def value(self, agr: int, dis: int, ff: int = 0, sx: int = 0, sy: int = 0, n_cells: int = 0,
+              floor: int = 0) -> float:
+        return float(value_of(self.code, floor, agr, dis, ff, sx, sy, n_cells))
 
 
 MEASURES_BY_NAME = {

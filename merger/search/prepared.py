@@ -106,6 +106,7 @@ class Prepared:
         ref, mov = problem.ref, problem.moving
         self.problem = problem
         self.measure = measure(problem.measure)
+        self.floor = int(problem.min_support)  # the support floor (measures.value_of)
         self.k = problem.window_cells if k is None else k
         self.n = n = problem.n
         self.res = ref.resolution

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import OccupancyGrid
-from ..similarity import MEASURES, Counts, measure_fn
+from ..similarity import MEASURES, Counts, Similarity, measure_fn
 from ..transform import extract_roi, roi_cells, rotated_roi
 
 
@@ -32,11 +32,17 @@ COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
 FINE_HALF_WIDTH_DEG = 1.0
 RUNNER_UP_MIN_SEPARATION_DEG = 10.0
+ROI_MIN_SUPPORT = 50  # cells: the support floor of align() and merge cycles (RotationProblem.min_support)
 
 
 @dataclass(frozen=True, eq=False)
 class RotationProblem:
-    """One alignment to search: ``moving`` rotated about ``center_moving`` onto ``ref`` at ``center_ref``."""
+    """One alignment to search: ``moving`` rotated about ``center_moving`` onto ``ref`` at ``center_ref``.
+
+    ``min_support`` (cells, ≥ 0): a placement whose ROI support agr̃ + dis is below it scores 0 (the
+    support floor, :mod:`merger.search.measures`), so no optimum rests on a handful of cells; 0 keeps
+    the measures as the thesis defines them. ``align`` and merge cycles use :data:`ROI_MIN_SUPPORT`.
+    """
 
     ref: OccupancyGrid
     moving: OccupancyGrid
@@ -46,6 +52,7 @@ class RotationProblem:
     measure: str = "similarity"
     window_m: float = 0.0
     refine: bool = False
+    min_support: int = 0
 
     def __post_init__(self) -> None:
         if self.measure not in MEASURES:
@@ -54,6 +61,9 @@ class RotationProblem:
             raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m}")
         check_window(self.window_m, self.roi_m)
         check_roi_cells(self.roi_m, self.ref.resolution)
+        if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
+                or not 0 <= self.min_support < 2 ** 40:
+            raise ValueError(f"min_support must be a whole number of cells >= 0, got {self.min_support!r}")
         for name, c in (("center_ref", self.center_ref), ("center_moving", self.center_moving)):
             if len(c) != 2 or not all(math.isfinite(float(v)) for v in c):
                 raise ValueError(f"{name} must be two finite numbers (x, y), got {c}")
@@ -78,7 +88,7 @@ class RotationProblem:
     def at(self, a: int, b: int) -> RotationProblem:
         """The rotation-only problem about the shifted reference center c_ref + t (the thesis's search)."""
         return RotationProblem(self.ref, self.moving, self.center_at(a, b), self.center_moving, self.roi_m,
-                               self.measure)
+                               self.measure, min_support=self.min_support)
 
     @property
     def n(self) -> int:
@@ -93,9 +103,16 @@ class RotationProblem:
                            self.ref.resolution)
 
     def evaluate(self, theta_deg: float, ref_roi: np.ndarray | None = None):
-        """The exact similarity (value and counts) of the ROIs at ``theta_deg``."""
+        """The exact similarity (value and counts) of the ROIs at ``theta_deg``, with the support floor."""
         r = self.ref_roi() if ref_roi is None else ref_roi
-        return measure_fn(self.measure)(r, self.moving_roi(theta_deg))
+        return floored(measure_fn(self.measure)(r, self.moving_roi(theta_deg)), self.min_support)
+
+
+def floored(sim: Similarity, floor: int) -> Similarity:
+    """``sim`` with value 0 when its support agr̃ + dis is below ``floor`` (measures.value_of)."""
+    if sim.counts.support >= floor:
+        return sim
+    return Similarity(0.0, sim.counts, sim.measure)
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,6 +215,14 @@ class Alignment:
     @property
     def runner_up_score(self) -> float:
         return self.runner_up[1]
+
+    @property
+    def has_evidence(self) -> bool:
+        """Whether the answer rests on anything: a score above 0 (with the support floor, ω̃ > 0 means at
+        least ``min_support`` cells of support and one agreeing cell). An ROI without an occupied cell in
+        either map, or without a placement reaching the floor, answers θ = 0, t = 0 with score 0: no
+        evidence, not an alignment."""
+        return self.score > 0
 
     @property
     def margin(self) -> float:

@@ -24,13 +24,21 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .ambiguity import PairAmbiguity, resolve
+from .evidence import CONTRAST_MIN, TOLERANCE_M
 from .grid import OccupancyGrid
 from .memo import Memo, map_key
 from .pool import parallel_map
-from .search import ROI_MIN_SUPPORT, Alignment, RotationProblem, angle_diff_deg, check_window, search, wrap_deg
+from .search import (
+    ROI_MIN_SUPPORT,
+    Alignment,
+    RotationProblem,
+    angle_diff_deg,
+    check_window,
+    search,
+    wrap_deg,
+)
 from .superpose import fuse, superpose
 from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
-from .evidence import CONTRAST_MIN, TOLERANCE_M
 from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
 VERIFICATIONS = ("whole_map", "roi_score", "contrast")

@@ -1,9 +1,28 @@
-"""Synthetic SLAM: a drifting pose estimate and a log-odds occupancy grid in the robot's own frame.
+"""The bench SLAM: a pose estimate and a log-odds occupancy grid in the robot's own frame.
 
-Each robot maps in its frame M_i = its pose at start, as gmapping does. The pose estimate is the true
-pose expressed in M_i plus a drift (x, y, yaw) that is a random walk in the distance travelled. Every
-scan updates a log-odds grid by ray tracing from the *estimated* pose with the usual inverse sensor
-model: cells along a beam get ``miss``, the cell of its return gets ``hit``; a beam without return
+Each robot maps in its frame M_i = its pose at start, as gmapping does. Two models of the pose estimate
+(``SlamConfig.model``):
+
+* ``scan_matching`` (default, online): the pose is predicted from **wheel odometry with noise** — the
+  true motion since the last scan as a translation δt along its bearing and a rotation δr, perturbed by
+  zero-mean normal draws of standard deviation √(α3·δt² + α4·δr²) along the bearing, √(α4·δr² + α5·δt²)
+  across it and √(α1·δr² + α2·δt²) in yaw: Probabilistic Robotics' odometry model (table 5.6) in the
+  holonomic form of ROS amcl's ``omni-corrected`` model (Nav2 amcl's ``OmniMotionModel``), because the
+  bench's robots drive sideways round the circle while facing the center (the differential form would
+  read that as two ±90° turns per scan and add α1·(π/2)² of yaw variance to each) — then **corrected by matching the scan to the robot's own map so far**
+  (:mod:`circsim.scanmatch`: a correlative search on a window of three standard deviations of the
+  odometry's accumulated uncertainty, capped by ``matcher`` and at least one cell and one angular step,
+  then Gauss–Newton), and the scan is integrated at the corrected pose. With gmapping's update rule
+  (``linear_update_m`` / ``angular_update_rad``) only the scans it integrates are matched, as gmapping
+  processes only those; between them the estimate follows the odometry. The map's errors come from the
+  matcher in the room's geometry (slips along featureless walls), not from an invented random walk.
+  Every draw comes from the robot's SLAM stream (three normals per scan).
+* ``odometry_only`` (a stress option): the true pose expressed in M_i plus a drift (x, y, yaw) that is
+  a random walk in the distance travelled (σ = ``drift`` · √L), never corrected: after many laps of
+  one room two robots' maps disagree by degrees. Use it to test the merger against drifted maps.
+
+Every integrated scan updates the log-odds grid by ray tracing from the *estimated* pose with the usual
+inverse sensor model: cells along a beam get ``miss``, the cell of its return gets ``hit``; a beam without return
 (+inf) clears up to ``range_max``; -inf and NaN readings are ignored. Within one scan a cell is
 updated once (a hit wins over a pass), so nearby cells crossed by many beams are not over-counted.
 All beams are traced at once: OpenCV draws them as one polyline (sensor → end → sensor → …) into a
@@ -21,8 +40,11 @@ import numpy as np
 
 from merger.grid import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, OccupancyGrid
 
+from . import scanmatch
 from .motion import Pose
 
+SLAM_MODELS = ("scan_matching", "odometry_only")
+WINDOW_SIGMAS = 3.0  # the correlative window covers this many standard deviations of the prediction
 _FREE, _HIT = 1, 2  # codes in the per-scan mask
 _SHIFT = 8  # fractional bits of the sub-cell line end points given to OpenCV
 
@@ -40,6 +62,48 @@ class DriftConfig:
 
 
 @dataclass(frozen=True)
+class OdometryConfig:
+    """Wheel-odometry noise of the ``scan_matching`` model: Probabilistic Robotics' α1–α4 (table 5.6) and
+    amcl's α5 for the sideways slip of a holonomic base.
+
+    alpha1 : rotation noise from rotation; alpha2 : rotation noise from translation; alpha3 : translation
+    noise from translation; alpha4 : translation noise from rotation (and sideways noise from rotation);
+    alpha5 : sideways noise from translation. ROS amcl's ``odom_alpha1``–``5`` and Nav2 amcl's
+    ``alpha1``–``5`` mean these, with 0.2 each as their default, taken here. The noise is drawn once per
+    scan (the odometry increment between two scans), so its effect over a path depends on ``dt_s``: at
+    the bench's 10 Hz and 0.2 m/s, about 0.6° of yaw and 1 cm of position per scan (1σ).
+    """
+
+    alpha1: float = 0.2
+    alpha2: float = 0.2
+    alpha3: float = 0.2
+    alpha4: float = 0.2
+    alpha5: float = 0.2
+
+
+@dataclass(frozen=True)
+class MatcherConfig:
+    """The scan matcher of the ``scan_matching`` model (:mod:`circsim.scanmatch`).
+
+    linear_window_m, angular_window_deg : the largest correlative window (± on each axis, ± in yaw):
+        Cartographer's ``real_time_correlative_scan_matcher`` defaults (0.1 m, 20°). The window used is
+        three standard deviations of the odometry's uncertainty since the last matched scan, within these
+        caps, at least one cell and one angular step.
+    max_points : scan points matched at most (every k-th valid return); Cartographer's adaptive voxel
+        filter aims at 200.
+    translation_weight, rotation_weight : weights of the refinement's prior about the correlative pose
+        (per metre, per radian; Cartographer's Ceres matcher has 10 and 40 about the prediction, with a
+        smoother map). Small: they only hold a direction the scan does not constrain (a corridor's axis).
+    """
+
+    linear_window_m: float = 0.1
+    angular_window_deg: float = 20.0
+    max_points: int = 200
+    translation_weight: float = 1.0
+    rotation_weight: float = 1.0
+
+
+@dataclass(frozen=True)
 class LogOddsConfig:
     """Inverse sensor model increments and the symmetric clamp |l| ≤ clamp."""
 
@@ -52,10 +116,13 @@ class LogOddsConfig:
 class SlamConfig:
     """Grid and noise parameters of the synthetic SLAM.
 
+    model : ``scan_matching`` (odometry corrected by matching each scan to the map) or
+        ``odometry_only`` (the random-walk drift, never corrected: a stress option).
     resolution_m : cell size.
     size_m : side of the square grid, centred on the start pose (must hold the robot's circle plus
         the laser range that matters: the room).
-    drift : pose-estimate drift.
+    odometry, matcher : the ``scan_matching`` model's odometry noise and scan matcher.
+    drift : the ``odometry_only`` model's random-walk drift.
     log_odds : inverse sensor model.
     occupied_thresh, free_thresh : probability thresholds to ternary (map_server's rule).
     publish_period_s : how often the robot publishes its map (used by the simulation loop; gmapping's
@@ -66,8 +133,11 @@ class SlamConfig:
         default here): every scan is integrated.
     """
 
+    model: str = "scan_matching"
     resolution_m: float = 0.05
     size_m: float = 16.0
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    matcher: MatcherConfig = field(default_factory=MatcherConfig)
     drift: DriftConfig = field(default_factory=DriftConfig)
     log_odds: LogOddsConfig = field(default_factory=LogOddsConfig)
     occupied_thresh: float = DEFAULT_OCCUPIED_THRESH
@@ -84,10 +154,12 @@ class Slam:
     ----------
     config : grid and noise parameters.
     start_pose_world : the robot's pose at start in the world; it defines M_i.
-    rng : source of drift draws (three normals per update).
+    rng : source of the odometry noise or the drift (three normals per update).
     """
 
     def __init__(self, config: SlamConfig, start_pose_world, rng: np.random.Generator) -> None:
+        if config.model not in SLAM_MODELS:
+            raise ValueError(f"slam model must be one of {', '.join(SLAM_MODELS)}, got {config.model!r}")
         self.config = config
         self.start = Pose(*(float(v) for v in start_pose_world))
         self._rng = rng
@@ -96,6 +168,8 @@ class Slam:
         half = self.size_cells * res / 2.0
         self.origin = (-half, -half)
         self.log_odds = np.zeros((self.size_cells, self.size_cells), np.float32)
+        # where, within each cell, the returns fell (the matcher's sub-cell walls); scan_matching only
+        self.hits = scanmatch.HitMeans(self.log_odds.shape) if config.model == "scan_matching" else None
         self._lut = np.array([0.0, config.log_odds.miss, config.log_odds.hit], np.float32)
         self._drift = np.zeros(3)  # dx, dy (metres, in M_i), dyaw (radians)
         self._last_true: Pose | None = None
@@ -103,6 +177,9 @@ class Slam:
         self._linear_acc = self._angular_acc = 0.0  # integrated scan
         self.distance_m = 0.0
         self.updates = 0
+        self.matches = 0  # scans matched to the map (scan_matching)
+        self.last_match: scanmatch.Match | None = None
+        self._var_yaw = self._var_xy = 0.0  # the odometry's variance since the last matched scan
         self._est = Pose(0.0, 0.0, 0.0)
         self._grid: OccupancyGrid | None = None
 
@@ -124,16 +201,74 @@ class Slam:
 
     # --- mapping ------------------------------------------------------------------------------
     def update(self, true_pose_world, scan) -> Pose:
-        """Integrate one scan taken at ``true_pose_world``; returns the new pose estimate in M_i."""
+        """Take one scan taken at ``true_pose_world`` (the odometry sees the true motion since the last
+        scan, with noise); returns the new pose estimate in M_i."""
         true_pose_world = Pose(*(float(v) for v in true_pose_world))
-        self._advance_drift(true_pose_world)
-        t = self.true_pose_in_map(true_pose_world)
-        self._est = Pose(t.x + self._drift[0], t.y + self._drift[1], _wrap_pi(t.yaw + self._drift[2]))
-        if self._due(true_pose_world):
+        if self.config.model == "odometry_only":
+            self._advance_drift(true_pose_world)
+            t = self.true_pose_in_map(true_pose_world)
+            self._est = Pose(t.x + self._drift[0], t.y + self._drift[1], _wrap_pi(t.yaw + self._drift[2]))
+            due = self._due(true_pose_world)
+        else:
+            first = self._last_true is None
+            self._predict(true_pose_world)
+            due = self._due(true_pose_world)
+            if due and not first:
+                self._match(scan)
+        if due:
             self._integrate(self._est, scan)
             self.updates += 1
             self._grid = None
         return self._est
+
+    def _predict(self, pose: Pose) -> None:
+        """The odometry motion model (Nav2 amcl's OmniMotionModel): the true motion since the last scan
+        as a translation δt along its bearing and a rotation δr, with noise on the translation, a
+        sideways slip and the rotation, applied to the estimate."""
+        prev, self._last_true = self._last_true, pose
+        z = self._rng.standard_normal(3)  # drawn at every scan, the first too: a stable stream
+        if prev is None:
+            return
+        a = self.config.odometry
+        dx, dy = pose.x - prev.x, pose.y - prev.y
+        trans = math.hypot(dx, dy)
+        rot = _wrap_pi(pose.yaw - prev.yaw)
+        self.distance_m += trans
+        var_t = a.alpha3 * trans * trans + a.alpha4 * rot * rot
+        var_r = a.alpha1 * rot * rot + a.alpha2 * trans * trans
+        var_s = a.alpha4 * rot * rot + a.alpha5 * trans * trans
+        trans_hat = trans + z[0] * math.sqrt(var_t)
+        rot_hat = rot + z[1] * math.sqrt(var_r)
+        strafe_hat = z[2] * math.sqrt(var_s)
+        e = self._est
+        bearing = math.atan2(dy, dx) - prev.yaw + e.yaw  # the direction of travel, in the estimate's frame
+        c, s = math.cos(bearing), math.sin(bearing)
+        self._est = Pose(e.x + trans_hat * c + strafe_hat * s, e.y + trans_hat * s - strafe_hat * c,
+                         _wrap_pi(e.yaw + rot_hat))
+        # first order: the heading's variance displaces the path sideways
+        self._var_xy += var_t + var_s + trans * trans * self._var_yaw
+        self._var_yaw += var_r
+
+    def _match(self, scan) -> None:
+        """Correct the predicted pose by matching the scan to the map so far (:func:`scanmatch.match`)."""
+        m = self.config.matcher
+        r = np.asarray(scan.ranges, np.float64)
+        idx = np.flatnonzero(np.isfinite(r) & (r >= scan.range_min))
+        if idx.size == 0:
+            return
+        if idx.size > m.max_points:
+            idx = idx[::-(-idx.size // m.max_points)]
+        a = scan.angle_min + idx * scan.angle_increment
+        px, py = r[idx] * np.cos(a), r[idx] * np.sin(a)
+        res = self.config.resolution_m
+        lin = min(m.linear_window_m, WINDOW_SIGMAS * math.sqrt(self._var_xy))
+        ang = min(math.radians(m.angular_window_deg), WINDOW_SIGMAS * math.sqrt(self._var_yaw))
+        e = self._est
+        self.last_match = scanmatch.match(self.log_odds, self.hits, self.origin, res, self.config.log_odds.clamp, px, py,
+                                          (e.x, e.y, e.yaw), lin, ang, m.translation_weight, m.rotation_weight)
+        self._est = Pose(self.last_match.x, self.last_match.y, _wrap_pi(self.last_match.yaw))
+        self._var_xy = self._var_yaw = 0.0
+        self.matches += 1
 
     def _due(self, pose: Pose) -> bool:
         """gmapping's rule (GridSlamProcessor::processScan): the first scan, then one once the path
@@ -194,6 +329,9 @@ class Slam:
         hy = np.floor(cy + r[hit] * sin[hit] / res).astype(np.intp) - r0
         ok = (hx >= 0) & (hx < c1 - c0) & (hy >= 0) & (hy < r1 - r0)
         mask[hy[ok], hx[ok]] = _HIT
+        if self.hits is not None:
+            self.hits.add(hy[ok] + r0, hx[ok] + c0, pose.x + r[hit][ok] * cos[hit][ok],
+                          pose.y + r[hit][ok] * sin[hit][ok])
         lo = self.log_odds[r0:r1, c0:c1]
         lo += self._lut[mask]
         np.clip(lo, -self.config.log_odds.clamp, self.config.log_odds.clamp, out=lo)

@@ -70,6 +70,33 @@ class HitMeans:
         np.add.at(self.count, (rows, cols), 1.0)
 
 
+def scan_points(ranges: np.ndarray, angle_min: float, angle_increment: float, range_min: float,
+                max_points: int, neighbour: int = 2, max_gap_m: float = 0.15):
+    """A scan's points for matching, in the robot frame: at most ``max_points`` valid returns (every
+    k-th), each with the unit normal of the surface it lies on, from the returns ``neighbour`` beams
+    either side (when both are valid and within ``max_gap_m`` of it; else (0, 0): no normal).
+    Returns px, py, nx, ny."""
+    r = np.asarray(ranges, np.float64)
+    ok = np.isfinite(r) & (r >= range_min)
+    a = angle_min + np.arange(r.size) * angle_increment
+    rr = np.where(ok, r, 0.0)
+    x, y = rr * np.cos(a), rr * np.sin(a)
+    idx = np.flatnonzero(ok)
+    if idx.size > max_points:
+        idx = idx[::-(-idx.size // max_points)]
+    lo, hi = idx - neighbour, idx + neighbour
+    good = (lo >= 0) & (hi < r.size)
+    lo, hi = np.clip(lo, 0, r.size - 1), np.clip(hi, 0, r.size - 1)
+    good &= ok[lo] & ok[hi]
+    good &= np.hypot(x[lo] - x[idx], y[lo] - y[idx]) < max_gap_m
+    good &= np.hypot(x[hi] - x[idx], y[hi] - y[idx]) < max_gap_m
+    tx, ty = x[hi] - x[lo], y[hi] - y[lo]
+    norm = np.hypot(tx, ty)
+    good &= norm > 0
+    norm = np.where(good, norm, 1.0)
+    return x[idx], y[idx], np.where(good, -ty / norm, 0.0), np.where(good, tx / norm, 0.0)
+
+
 def angular_step(resolution_m: float, max_range_m: float) -> float:
     """Cartographer's angular step: the rotation that moves the farthest point by one cell (radians)."""
     d = max(max_range_m, resolution_m)
@@ -77,13 +104,15 @@ def angular_step(resolution_m: float, max_range_m: float) -> float:
 
 
 def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, clamp: float, px: np.ndarray,
-          py: np.ndarray, pred, linear_window_m: float, angular_window_rad: float, translation_weight: float,
-          rotation_weight: float) -> Match:
+          py: np.ndarray, nx: np.ndarray, ny: np.ndarray, pred, linear_window_m: float, angular_window_rad: float,
+          translation_weight: float, rotation_weight: float) -> Match:
     """The pose near ``pred`` (x, y, yaw) at which the points (``px``, ``py``, robot frame, metres) fit
     the map best; the search covers ±``linear_window_m`` on each axis (at least one cell) and
     ±``angular_window_rad`` (at least one step)."""
     px = np.ascontiguousarray(px, np.float64)
     py = np.ascontiguousarray(py, np.float64)
+    nx = np.ascontiguousarray(nx, np.float64)
+    ny = np.ascontiguousarray(ny, np.float64)
     if px.size == 0:
         return Match(float(pred[0]), float(pred[1]), float(pred[2]), 0.0, False)
     step = angular_step(resolution_m, float(np.sqrt(px * px + py * py).max()))
@@ -95,7 +124,7 @@ def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, cla
                                          CSM_DELTA_WEIGHT)
     best = None
     for start in ((x, y, th), (float(pred[0]), float(pred[1]), float(pred[2]))):
-        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, resolution_m, px, py,
+        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, resolution_m, px, py, nx, ny,
                    *start, translation_weight, rotation_weight, GN_ITERATIONS)
         if best is None or r[3] < best[3]:
             best = r
@@ -181,10 +210,15 @@ def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, wx, wy):
 
 
 @njit(cache=True, nogil=True)
-def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th0, w_t, w_r, want_grad, h, g):
-    """Cost at (x, y, θ); with ``want_grad`` also the Gauss–Newton normal equations (h 3×3, g 3). A point
-    contributes ((p − μ)/σ)² (μ its nearest mean hit) up to ``OUTLIER_SIGMAS``² (then it is an outlier:
-    a constant, no pull)."""
+def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, want_grad,
+               h, g):
+    """Cost at (x, y, θ); with ``want_grad`` also the Gauss–Newton normal equations (h 3×3, g 3).
+
+    A point p with a surface normal n (robot frame, unit; (0, 0) for none) contributes
+    (R(θ)n · (S(p) − μ) / σ)², its distance to the mean hit μ nearest to it along the surface's normal
+    (point-to-line, as PL-ICP: a wall does not pull along itself); without a normal, |S(p) − μ|² / σ².
+    A point farther than ``OUTLIER_SIGMAS``·σ from every mean hit near it adds that constant squared
+    and pulls nothing."""
     n = px.size
     inv_n = 1.0 / n
     cap = OUTLIER_SIGMAS * OUTLIER_SIGMAS
@@ -193,6 +227,7 @@ def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th
     if want_grad:
         h[:, :] = 0.0
         g[:] = 0.0
+    j = np.zeros(3)
     for i in range(n):
         wx = c * px[i] - s * py[i] + x
         wy = s * px[i] + c * py[i] + y
@@ -206,12 +241,25 @@ def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th
         if e2 >= cap:
             cost += cap * inv_n
             continue
+        a = (-s * px[i] - c * py[i]) / sigma  # dS/dθ over σ
+        b = (c * px[i] - s * py[i]) / sigma
+        q = 1.0 / sigma
+        if nx[i] != 0.0 or ny[i] != 0.0:
+            mxn = c * nx[i] - s * ny[i]
+            myn = s * nx[i] + c * ny[i]
+            r = mxn * ex + myn * ey
+            cost += r * r * inv_n
+            if want_grad:
+                j[0] = mxn * q
+                j[1] = myn * q
+                j[2] = mxn * a + myn * b + (-myn) * ex + mxn * ey  # n·dS/dθ + dn/dθ·(S − μ)
+                for u in range(3):
+                    g[u] += j[u] * r * inv_n
+                    for v in range(u, 3):
+                        h[u, v] += j[u] * j[v] * inv_n
+            continue
         cost += e2 * inv_n
         if want_grad:
-            # residuals ex, ey; d/dξ = [1, 0, dSx/dθ] / σ and [0, 1, dSy/dθ] / σ
-            a = (-s * px[i] - c * py[i]) / sigma
-            b = (c * px[i] - s * py[i]) / sigma
-            q = 1.0 / sigma
             h[0, 0] += q * q * inv_n
             h[1, 1] += q * q * inv_n
             h[0, 2] += q * a * inv_n
@@ -257,13 +305,13 @@ def _solve3(h, g):
 
 
 @njit(cache=True, nogil=True)
-def refine(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x0, y0, th0, w_t, w_r, iterations):
+def refine(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x0, y0, th0, w_t, w_r, iterations):
     """Gauss–Newton from (x0, y0, θ0) with the prior about it; returns the refined (x, y, θ) and its fit
     (the cost without the prior)."""
     h = np.zeros((3, 3))
     g = np.zeros(3)
     x, y, th = x0, y0, th0
-    cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th0, w_t, w_r, True,
+    cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, True,
                       h, g)
     for _ in range(iterations):
         d = _solve3(h, g)
@@ -271,17 +319,18 @@ def refine(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x0, y0, th0, w_t, w_r, i
             break
         moved = False
         for _k in range(GN_HALVINGS + 1):
-            nx, ny, nth = x + d[0], y + d[1], th + d[2]
-            c2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, nth, x0, y0, th0, w_t, w_r,
-                            False, h, g)
+            qx, qy, qth = x + d[0], y + d[1], th + d[2]
+            c2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, qx, qy, qth, x0, y0, th0, w_t,
+                            w_r, False, h, g)
             if c2 < cost:
-                x, y, th = nx, ny, nth
+                x, y, th = qx, qy, qth
                 moved = True
                 break
             d *= 0.5
         if not moved:
             break
-        cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th0, w_t, w_r,
+        cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r,
                           True, h, g)
-    fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, x, y, th, x0, y0, th0, 0.0, 0.0, False, h, g)
+    fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, 0.0, 0.0, False,
+                     h, g)
     return x, y, th, fit

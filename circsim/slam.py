@@ -252,20 +252,16 @@ class Slam:
     def _match(self, scan) -> None:
         """Correct the predicted pose by matching the scan to the map so far (:func:`scanmatch.match`)."""
         m = self.config.matcher
-        r = np.asarray(scan.ranges, np.float64)
-        idx = np.flatnonzero(np.isfinite(r) & (r >= scan.range_min))
-        if idx.size == 0:
+        px, py, nx, ny = scanmatch.scan_points(scan.ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                                               m.max_points)
+        if px.size == 0:
             return
-        if idx.size > m.max_points:
-            idx = idx[::-(-idx.size // m.max_points)]
-        a = scan.angle_min + idx * scan.angle_increment
-        px, py = r[idx] * np.cos(a), r[idx] * np.sin(a)
         res = self.config.resolution_m
         lin = min(m.linear_window_m, WINDOW_SIGMAS * math.sqrt(self._var_xy))
         ang = min(math.radians(m.angular_window_deg), WINDOW_SIGMAS * math.sqrt(self._var_yaw))
         e = self._est
         self.last_match = scanmatch.match(self.log_odds, self.hits, self.origin, res, self.config.log_odds.clamp, px, py,
-                                          (e.x, e.y, e.yaw), lin, ang, m.translation_weight, m.rotation_weight)
+                                          nx, ny, (e.x, e.y, e.yaw), lin, ang, m.translation_weight, m.rotation_weight)
         self._est = Pose(self.last_match.x, self.last_match.y, _wrap_pi(self.last_match.yaw))
         self._var_xy = self._var_yaw = 0.0
         self.matches += 1

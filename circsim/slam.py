@@ -180,6 +180,7 @@ class Slam:
         self.matches = 0  # scans matched to the map (scan_matching)
         self.last_match: scanmatch.Match | None = None
         self._var_yaw = self._var_xy = 0.0  # the odometry's variance since the last matched scan
+        self._integrated_at: tuple[Pose, Pose] | None = None  # (true pose in W, estimate in M_i)
         self._est = Pose(0.0, 0.0, 0.0)
         self._grid: OccupancyGrid | None = None
 
@@ -219,7 +220,20 @@ class Slam:
             self._integrate(self._est, scan)
             self.updates += 1
             self._grid = None
+            self._integrated_at = (true_pose_world, self._est)
         return self._est
+
+    def map_frame_estimate(self) -> Pose | None:
+        """Where the map's frame lies in the world as the SLAM built it: the frame in which the last
+        integrated scan's true pose has the estimated coordinates, F = P_true ∘ P_est⁻¹ (the start pose when
+        the estimate is exact); None before the first scan. The transform between two robots' F is the
+        alignment their maps as built call for (the estimated-frame truth of :mod:`circsim.metrics`)."""
+        if self._integrated_at is None:
+            return None
+        p, e = self._integrated_at
+        yaw = p.yaw - e.yaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        return Pose(p.x - (c * e.x - s * e.y), p.y - (s * e.x + c * e.y), _wrap_pi(yaw))
 
     def _predict(self, pose: Pose) -> None:
         """The odometry motion model (Nav2 amcl's OmniMotionModel): the true motion since the last scan

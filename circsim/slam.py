@@ -13,8 +13,10 @@ Each robot maps in its frame M_i = its pose at start, as gmapping does. Two mode
   (:mod:`circsim.scanmatch`: a correlative search on a window of three standard deviations of the
   odometry's accumulated uncertainty, capped by ``matcher`` and at least one cell and one angular step,
   then Gauss–Newton), and the scan is integrated at the corrected pose. With gmapping's update rule
-  (``linear_update_m`` / ``angular_update_rad``) only the scans it integrates are matched, as gmapping
-  processes only those; between them the estimate follows the odometry. The map's errors come from the
+  (``linear_update_m`` / ``angular_update_rad``) every scan is still matched but only the
+  scans the rule picks are integrated: gmapping matches only those, but it carries 30 particles through
+  the odometry between them; one matched pose per scan is the single-hypothesis stand-in that keeps the
+  integrated scans as well placed. The map's errors come from the
   matcher in the room's geometry (slips along featureless walls), not from an invented random walk.
   Every draw comes from the robot's SLAM stream (three normals per scan).
 * ``odometry_only`` (a stress option): the true pose expressed in M_i plus a drift (x, y, yaw) that is
@@ -213,9 +215,9 @@ class Slam:
         else:
             first = self._last_true is None
             self._predict(true_pose_world)
-            due = self._due(true_pose_world)
-            if due and not first:
+            if not first:
                 self._match(scan)
+            due = self._due(true_pose_world)
         if due:
             self._integrate(self._est, scan)
             self.updates += 1

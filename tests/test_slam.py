@@ -9,11 +9,10 @@ import cv2
 import numpy as np
 import pytest
 
+from circsim import scanmatch
 from circsim.laser import LaserConfig, LaserScan, scan
 from circsim.motion import trajectories
 from circsim.scenario import bundled_scenarios, load_scenario
-from circsim import scanmatch
-from circsim.motion import Pose
 from circsim.slam import DriftConfig, OdometryConfig, Slam, SlamConfig
 from circsim.world import World
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
@@ -204,8 +203,9 @@ def test_matcher_recovers_a_known_pose_offset_in_a_hand_built_room(offset):
     assert math.hypot(dx, dy) > 0.05 or abs(dyaw) > 2
 
 
-def drive(world, name, poses, cfg=SlamConfig(), laser_cfg=LaserConfig(), seed=0):
+def drive(world, name, poses, cfg=None, laser_cfg=None, seed=0):
     """Drive a robot through ``poses`` (world), one scan each; the SLAM's errors (m, deg) and the SLAM."""
+    cfg, laser_cfg = cfg or SlamConfig(), laser_cfg or LaserConfig()
     rng = np.random.default_rng(seed)
     slam = Slam(cfg, poses[0], np.random.default_rng(seed + 1))
     errs = []

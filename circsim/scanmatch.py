@@ -36,7 +36,8 @@ import numpy as np
 from numba import njit
 
 CSM_DELTA_WEIGHT = 0.1  # Cartographer's translation_/rotation_delta_cost_weight defaults (per m, per rad)
-GN_ITERATIONS = 20
+GN_ITERATIONS = 10
+STOP_M, STOP_RAD = 1e-4, 1e-5  # Gauss–Newton stops below a step of 0.1 mm and 0.0006°
 GN_HALVINGS = 6
 OUTLIER_SIGMAS = 2.0  # a point farther than this from every mean hit near it pulls nothing
 
@@ -56,7 +57,9 @@ class Match:
 
 class HitMeans:
     """Per cell, the sum of the scan returns (map-frame x, y) that fell in it and their count: the cell's
-    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``)."""
+    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A cell that has
+    been seen free is forgotten for good (its count is −∞): a return there came from something that moved
+    (a teammate driving by), and matching scans to its trace would drag the pose along its path."""
 
     def __init__(self, shape) -> None:
         self.sum_x = np.zeros(shape, np.float64)
@@ -65,9 +68,22 @@ class HitMeans:
 
     def add(self, rows: np.ndarray, cols: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
         """Add returns at map-frame (x, y) in cells (rows, cols) (repeated cells add up)."""
-        np.add.at(self.sum_x, (rows, cols), x)
-        np.add.at(self.sum_y, (rows, cols), y)
-        np.add.at(self.count, (rows, cols), 1.0)
+        _accumulate(self.sum_x, self.sum_y, self.count, np.ascontiguousarray(rows, np.int64),
+                    np.ascontiguousarray(cols, np.int64), np.ascontiguousarray(x, np.float64),
+                    np.ascontiguousarray(y, np.float64))
+
+
+    def forget(self, r0: int, r1: int, c0: int, c1: int, free: np.ndarray) -> None:
+        """Forget the cells of the window [r0:r1, c0:c1] where ``free`` is set."""
+        self.count[r0:r1, c0:c1][free] = -np.inf
+
+
+@njit(cache=True, nogil=True)
+def _accumulate(sx, sy, cnt, rows, cols, x, y):
+    for i in range(rows.size):
+        sx[rows[i], cols[i]] += x[i]
+        sy[rows[i], cols[i]] += y[i]
+        cnt[rows[i], cols[i]] += 1.0
 
 
 def scan_points(ranges: np.ndarray, angle_min: float, angle_increment: float, range_min: float,
@@ -76,25 +92,47 @@ def scan_points(ranges: np.ndarray, angle_min: float, angle_increment: float, ra
     k-th), each with the unit normal of the surface it lies on, from the returns ``neighbour`` beams
     either side (when both are valid and within ``max_gap_m`` of it; else (0, 0): no normal).
     Returns px, py, nx, ny."""
-    r = np.asarray(ranges, np.float64)
-    ok = np.isfinite(r) & (r >= range_min)
-    a = angle_min + np.arange(r.size) * angle_increment
-    rr = np.where(ok, r, 0.0)
-    x, y = rr * np.cos(a), rr * np.sin(a)
-    idx = np.flatnonzero(ok)
-    if idx.size > max_points:
-        idx = idx[::-(-idx.size // max_points)]
-    lo, hi = idx - neighbour, idx + neighbour
-    good = (lo >= 0) & (hi < r.size)
-    lo, hi = np.clip(lo, 0, r.size - 1), np.clip(hi, 0, r.size - 1)
-    good &= ok[lo] & ok[hi]
-    good &= np.hypot(x[lo] - x[idx], y[lo] - y[idx]) < max_gap_m
-    good &= np.hypot(x[hi] - x[idx], y[hi] - y[idx]) < max_gap_m
-    tx, ty = x[hi] - x[lo], y[hi] - y[lo]
-    norm = np.hypot(tx, ty)
-    good &= norm > 0
-    norm = np.where(good, norm, 1.0)
-    return x[idx], y[idx], np.where(good, -ty / norm, 0.0), np.where(good, tx / norm, 0.0)
+    r = np.ascontiguousarray(ranges, np.float64)
+    valid = int(np.count_nonzero(np.isfinite(r) & (r >= range_min)))
+    stride = max(1, -(-valid // max_points))
+    return _scan_points(r, float(angle_min), float(angle_increment), float(range_min), stride, neighbour,
+                        max_gap_m)
+
+
+@njit(cache=True, nogil=True)
+def _scan_points(r, angle_min, inc, range_min, stride, k, gap):
+    n = r.size
+    ok = np.empty(n, np.bool_)
+    x = np.zeros(n)
+    y = np.zeros(n)
+    for i in range(n):
+        ok[i] = math.isfinite(r[i]) and r[i] >= range_min
+        if ok[i]:
+            a = angle_min + i * inc
+            x[i] = r[i] * math.cos(a)
+            y[i] = r[i] * math.sin(a)
+    m = 0
+    for i in range(n):
+        m += ok[i]
+    m = (m + stride - 1) // stride
+    px, py, nx, ny = np.empty(m), np.empty(m), np.zeros(m), np.zeros(m)
+    j = seen = 0
+    for i in range(n):
+        if not ok[i]:
+            continue
+        seen += 1
+        if (seen - 1) % stride:
+            continue
+        px[j], py[j] = x[i], y[i]
+        lo, hi = i - k, i + k
+        if lo >= 0 and hi < n and ok[lo] and ok[hi] \
+                and math.hypot(x[lo] - x[i], y[lo] - y[i]) < gap and math.hypot(x[hi] - x[i], y[hi] - y[i]) < gap:
+            tx, ty = x[hi] - x[lo], y[hi] - y[lo]
+            norm = math.hypot(tx, ty)
+            if norm > 0.0:
+                nx[j], ny[j] = -ty / norm, tx / norm
+        j += 1
+    return px, py, nx, ny
 
 
 def angular_step(resolution_m: float, max_range_m: float) -> float:
@@ -105,7 +143,7 @@ def angular_step(resolution_m: float, max_range_m: float) -> float:
 
 def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, clamp: float, px: np.ndarray,
           py: np.ndarray, nx: np.ndarray, ny: np.ndarray, pred, linear_window_m: float, angular_window_rad: float,
-          translation_weight: float, rotation_weight: float) -> Match:
+          translation_weight: float, rotation_weight: float, min_log_odds: float = 0.0) -> Match:
     """The pose near ``pred`` (x, y, yaw) at which the points (``px``, ``py``, robot frame, metres) fit
     the map best; the search covers ±``linear_window_m`` on each axis (at least one cell) and
     ±``angular_window_rad`` (at least one step)."""
@@ -119,16 +157,17 @@ def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, cla
     n_lin = max(1, int(math.ceil(linear_window_m / resolution_m - 1e-9)))
     n_ang = max(1, int(math.ceil(angular_window_rad / step - 1e-9)))
     ox, oy = float(origin[0]), float(origin[1])
-    x, y, th, score = correlative_search(log_odds, ox, oy, resolution_m, clamp, px, py, float(pred[0]),
+    floor = max(float(min(min_log_odds, clamp)), 1e-6)  # cells below it are not matched
+    x, y, th, score = correlative_search(log_odds, hits.count, ox, oy, resolution_m, clamp, floor, px, py, float(pred[0]),
                                          float(pred[1]), float(pred[2]), n_lin, n_ang, step, CSM_DELTA_WEIGHT,
                                          CSM_DELTA_WEIGHT)
     best = None
     for start in ((x, y, th), (float(pred[0]), float(pred[1]), float(pred[2]))):
-        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, resolution_m, px, py, nx, ny,
+        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, floor, resolution_m, px, py, nx, ny,
                    *start, translation_weight, rotation_weight, GN_ITERATIONS)
         if best is None or r[3] < best[3]:
             best = r
-        if start == (x, y, th) and (x, y, th) == tuple(map(float, pred)):
+        if (x, y, th) == tuple(map(float, pred)):
             break
     return Match(best[0], best[1], best[2], score, best[3])
 
@@ -144,7 +183,7 @@ def _cell_value(lo, r, c, clamp):
 
 
 @njit(cache=True, nogil=True)
-def correlative_search(lo, ox, oy, res, clamp, px, py, x0, y0, th0, n_lin, n_ang, step, w_t, w_r):
+def correlative_search(lo, cnt, ox, oy, res, clamp, floor, px, py, x0, y0, th0, n_lin, n_ang, step, w_t, w_r):
     """The best (x, y, θ, raw score) over the window; translations are whole cells, so each rotated scan
     is discretized once and shifted by integer offsets (Cartographer's DiscreteScan2D)."""
     n = px.size
@@ -172,7 +211,7 @@ def correlative_search(lo, ox, oy, res, clamp, px, py, x0, y0, th0, n_lin, n_ang
                     if col < 0 or col >= lo.shape[1]:
                         continue
                     v = lo[r, col]
-                    if v > 0.0:
+                    if v >= floor and cnt[r, col] > 0.0:
                         sums[base + dx] += min(v, clamp)
         for dy in range(-n_lin, n_lin + 1):
             for dx in range(-n_lin, n_lin + 1):
@@ -186,7 +225,7 @@ def correlative_search(lo, ox, oy, res, clamp, px, py, x0, y0, th0, n_lin, n_ang
 
 
 @njit(cache=True, nogil=True)
-def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, wx, wy):
+def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, floor, wx, wy):
     """The mean hit nearest to (wx, wy) among the occupied cells (log-odds > 0) of the 3×3 cells about
     it: (found, mean x, mean y)."""
     c0 = int(math.floor((wx - ox) / res))
@@ -199,7 +238,7 @@ def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, wx, wy):
             if c < 0 or c >= lo.shape[1]:
                 continue
             n = cnt[r, c]
-            if lo[r, c] <= 0.0 or n <= 0.0:
+            if lo[r, c] < floor or n <= 0.0:
                 continue
             ux = sx[r, c] / n
             uy = sy[r, c] / n
@@ -210,7 +249,7 @@ def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, wx, wy):
 
 
 @njit(cache=True, nogil=True)
-def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, want_grad,
+def _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, want_grad,
                h, g):
     """Cost at (x, y, θ); with ``want_grad`` also the Gauss–Newton normal equations (h 3×3, g 3).
 
@@ -231,7 +270,7 @@ def _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0
     for i in range(n):
         wx = c * px[i] - s * py[i] + x
         wy = s * px[i] + c * py[i] + y
-        found, mx, my = _nearest_mean(lo, sx, sy, cnt, ox, oy, res, wx, wy)
+        found, mx, my = _nearest_mean(lo, sx, sy, cnt, ox, oy, res, floor, wx, wy)
         if not found:
             cost += cap * inv_n
             continue
@@ -305,22 +344,22 @@ def _solve3(h, g):
 
 
 @njit(cache=True, nogil=True)
-def refine(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x0, y0, th0, w_t, w_r, iterations):
+def refine(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x0, y0, th0, w_t, w_r, iterations):
     """Gauss–Newton from (x0, y0, θ0) with the prior about it; returns the refined (x, y, θ) and its fit
     (the cost without the prior)."""
     h = np.zeros((3, 3))
     g = np.zeros(3)
     x, y, th = x0, y0, th0
-    cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, True,
+    cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, True,
                       h, g)
     for _ in range(iterations):
         d = _solve3(h, g)
-        if abs(d[0]) < 1e-5 and abs(d[1]) < 1e-5 and abs(d[2]) < 1e-6:
+        if abs(d[0]) < STOP_M and abs(d[1]) < STOP_M and abs(d[2]) < STOP_RAD:
             break
         moved = False
         for _k in range(GN_HALVINGS + 1):
             qx, qy, qth = x + d[0], y + d[1], th + d[2]
-            c2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, qx, qy, qth, x0, y0, th0, w_t,
+            c2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, qx, qy, qth, x0, y0, th0, w_t,
                             w_r, False, h, g)
             if c2 < cost:
                 x, y, th = qx, qy, qth
@@ -329,8 +368,8 @@ def refine(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x0, y0, th0, w_t
             d *= 0.5
         if not moved:
             break
-        cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r,
+        cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r,
                           True, h, g)
-    fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, 0.0, 0.0, False,
+    fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, 0.0, 0.0, False,
                      h, g)
     return x, y, th, fit

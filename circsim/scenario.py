@@ -358,7 +358,7 @@ _SLAM = section(SlamConfig, {
     "odometry": section(OdometryConfig, {f"alpha{k}": _NONNEG for k in range(1, 6)}),
     "matcher": section(MatcherConfig, {"linear_window_m": _NONNEG, "angular_window_deg": number(ge=0, le=180),
                                        "max_points": integer(ge=3, le=MAX_BEAMS), "translation_weight": _NONNEG,
-                                       "rotation_weight": _NONNEG}),
+                                       "rotation_weight": _NONNEG, "min_log_odds": _NONNEG}),
     "drift": section(DriftConfig, {"xy_m_per_m": _NONNEG, "yaw_deg_per_m": _NONNEG}),
     "log_odds": section(LogOddsConfig, {"hit": _POS, "miss": number(lt=0), "clamp": _POS}),
     "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS,

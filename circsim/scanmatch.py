@@ -38,7 +38,8 @@ from numba import njit
 CSM_DELTA_WEIGHT = 0.1  # Cartographer's translation_/rotation_delta_cost_weight defaults (per m, per rad)
 GN_ITERATIONS = 10
 STOP_M, STOP_RAD = 1e-4, 1e-5  # Gauss–Newton stops below a step of 0.1 mm and 0.0006°
-GN_HALVINGS = 6
+GN_HALVINGS = 2
+STOP_GAIN = 1e-4
 OUTLIER_SIGMAS = 2.0  # a point farther than this from every mean hit near it pulls nothing
 
 
@@ -251,7 +252,8 @@ def _nearest_mean(lo, sx, sy, cnt, ox, oy, res, floor, wx, wy):
 @njit(cache=True, nogil=True)
 def _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, want_grad,
                h, g):
-    """Cost at (x, y, θ); with ``want_grad`` also the Gauss–Newton normal equations (h 3×3, g 3).
+    """Cost at (x, y, θ) with and without the prior; with ``want_grad`` also the Gauss–Newton normal
+    equations (h 3×3, g 3).
 
     A point p with a surface normal n (robot frame, unit; (0, 0) for none) contributes
     (R(θ)n · (S(p) − μ) / σ)², its distance to the mean hit μ nearest to it along the surface's normal
@@ -308,6 +310,7 @@ def _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y,
             g[1] += q * ey * inv_n
             g[2] += (a * ex + b * ey) * inv_n
     dth = (th - th0 + math.pi) % (2.0 * math.pi) - math.pi
+    data = cost
     cost += w_t * w_t * ((x - x0) ** 2 + (y - y0) ** 2) + w_r * w_r * dth * dth
     if want_grad:
         h[1, 0] = h[0, 1]
@@ -319,7 +322,7 @@ def _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y,
         g[0] += w_t * w_t * (x - x0)
         g[1] += w_t * w_t * (y - y0)
         g[2] += w_r * w_r * dth
-    return cost
+    return cost, data
 
 
 @njit(cache=True, nogil=True)
@@ -346,30 +349,30 @@ def _solve3(h, g):
 @njit(cache=True, nogil=True)
 def refine(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x0, y0, th0, w_t, w_r, iterations):
     """Gauss–Newton from (x0, y0, θ0) with the prior about it; returns the refined (x, y, θ) and its fit
-    (the cost without the prior)."""
-    h = np.zeros((3, 3))
-    g = np.zeros(3)
+    (the cost without the prior). A step that does not lower the cost is halved (``GN_HALVINGS`` times at
+    most); the iterations stop when a step is below ``STOP_M`` / ``STOP_RAD`` or gains less than
+    ``STOP_GAIN`` of the cost."""
+    h, g = np.zeros((3, 3)), np.zeros(3)
+    h2, g2 = np.zeros((3, 3)), np.zeros(3)
     x, y, th = x0, y0, th0
-    cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r, True,
-                      h, g)
+    cost, fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t,
+                           w_r, True, h, g)
     for _ in range(iterations):
         d = _solve3(h, g)
         if abs(d[0]) < STOP_M and abs(d[1]) < STOP_M and abs(d[2]) < STOP_RAD:
             break
-        moved = False
+        gain = -1.0
         for _k in range(GN_HALVINGS + 1):
             qx, qy, qth = x + d[0], y + d[1], th + d[2]
-            c2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, qx, qy, qth, x0, y0, th0, w_t,
-                            w_r, False, h, g)
+            c2, f2 = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, qx, qy, qth, x0, y0, th0,
+                                w_t, w_r, True, h2, g2)
             if c2 < cost:
-                x, y, th = qx, qy, qth
-                moved = True
+                gain = cost - c2
+                x, y, th, cost, fit = qx, qy, qth, c2, f2
+                h, h2 = h2, h
+                g, g2 = g2, g
                 break
             d *= 0.5
-        if not moved:
+        if gain < STOP_GAIN * cost:
             break
-        cost = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t, w_r,
-                          True, h, g)
-    fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, 0.0, 0.0, False,
-                     h, g)
     return x, y, th, fit

@@ -15,14 +15,19 @@ Two stages, as Cartographer's 2D local SLAM does them (``RealTimeCorrelativeScan
    ``exp(−(w_t·|Δt| + w_r·|Δθ|)²)`` (Cartographer's ``translation_delta_cost_weight`` and
    ``rotation_delta_cost_weight``, 0.1 each: equal fits go to the pose nearest the prediction, so a
    featureless direction keeps the odometry).
-2. **Local refinement** — Gauss–Newton (Hector SLAM's scheme) on the map value bilinearly interpolated
-   between cell centers, minimizing Σ (1 − M(S_i(ξ)))² / N plus w_t²·|t − t₀|² + w_r²·(θ − θ₀)² about the
-   correlative pose (a small prior that keeps a degenerate direction, a corridor's axis, where the
-   search put it). A step that does not lower the cost is halved (three times at most).
+2. **Local refinement** — Gauss–Newton from the correlative pose and from the prediction (the lower
+   cost wins), minimizing the mean squared distance of the points to the map's walls over σ = one cell,
+   (1/N)·Σ (r_i/σ)², plus the odometry's prior w_t²·|t − t_pred|² + w_r²·(θ − θ_pred)² (the caller
+   weighs it by the prediction's uncertainty; it also holds a direction the scan leaves free, a
+   corridor's axis). A point's distance r_i is to the mean hit μ of the nearest occupied cell among the
+   3×3 about it (gmapping keeps such means: a wall's place within its cell), along the surface normal
+   estimated from the neighbouring returns (point-to-line, as PL-ICP: a wall does not pull along itself),
+   or |S(p) − μ| for a point without one; beyond two cells a point is an outlier.
 
-The map value of a cell is its log-odds clipped to [0, clamp] over clamp: 0 for free and unknown
-cells, 1 for a saturated wall. Cells outside the grid are 0. A cell (row r, column c) spans
-[origin + c·res, origin + (c + 1)·res) in x (rows in y), as in :class:`merger.grid.OccupancyGrid`.
+The correlative score of a cell is its log-odds clipped to [0, clamp] over clamp. Cells below
+``min_log_odds``, and cells once seen free (:meth:`HitMeans.forget`), are not matched. A cell (row r,
+column c) spans [origin + c·res, origin + (c + 1)·res) in x (rows in y), as in
+:class:`merger.grid.OccupancyGrid`.
 
 The kernels are compiled with ``@njit(cache=True, nogil=True)``, no fastmath (as merger's).
 """
@@ -145,9 +150,11 @@ def angular_step(resolution_m: float, max_range_m: float) -> float:
 def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, clamp: float, px: np.ndarray,
           py: np.ndarray, nx: np.ndarray, ny: np.ndarray, pred, linear_window_m: float, angular_window_rad: float,
           translation_weight: float, rotation_weight: float, min_log_odds: float = 0.0) -> Match:
-    """The pose near ``pred`` (x, y, yaw) at which the points (``px``, ``py``, robot frame, metres) fit
-    the map best; the search covers ±``linear_window_m`` on each axis (at least one cell) and
-    ±``angular_window_rad`` (at least one step)."""
+    """The pose near ``pred`` (x, y, yaw) at which the points (``px``, ``py``, robot frame, metres, with
+    their surface normals ``nx``, ``ny``; (0, 0) for none) fit the map best; the search covers
+    ±``linear_window_m`` on each axis (at least one cell) and ±``angular_window_rad`` (at least one step);
+    ``translation_weight`` and ``rotation_weight`` weigh the prior about ``pred`` (per metre, per radian,
+    in the units of the mean squared distance over a cell)."""
     px = np.ascontiguousarray(px, np.float64)
     py = np.ascontiguousarray(py, np.float64)
     nx = np.ascontiguousarray(nx, np.float64)
@@ -164,9 +171,10 @@ def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, cla
                                          CSM_DELTA_WEIGHT)
     best = None
     for start in ((x, y, th), (float(pred[0]), float(pred[1]), float(pred[2]))):
-        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, floor, resolution_m, px, py, nx, ny,
-                   *start, translation_weight, rotation_weight, GN_ITERATIONS)
-        if best is None or r[3] < best[3]:
+        r = refine(log_odds, hits.sum_x, hits.sum_y, hits.count, ox, oy, resolution_m, floor, resolution_m, px, py,
+                   nx, ny, start[0], start[1], start[2], float(pred[0]), float(pred[1]), float(pred[2]),
+                   translation_weight, rotation_weight, GN_ITERATIONS)
+        if best is None or r[4] < best[4]:
             best = r
         if (x, y, th) == tuple(map(float, pred)):
             break
@@ -347,14 +355,15 @@ def _solve3(h, g):
 
 
 @njit(cache=True, nogil=True)
-def refine(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x0, y0, th0, w_t, w_r, iterations):
-    """Gauss–Newton from (x0, y0, θ0) with the prior about it; returns the refined (x, y, θ) and its fit
-    (the cost without the prior). A step that does not lower the cost is halved (``GN_HALVINGS`` times at
+def refine(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, xs, ys, ths, x0, y0, th0, w_t, w_r,
+           iterations):
+    """Gauss–Newton from (xs, ys, θs) with the prior about (x0, y0, θ0); returns the refined (x, y, θ), its
+    fit (the cost without the prior) and its cost. A step that does not lower the cost is halved (``GN_HALVINGS`` times at
     most); the iterations stop when a step is below ``STOP_M`` / ``STOP_RAD`` or gains less than
     ``STOP_GAIN`` of the cost."""
     h, g = np.zeros((3, 3)), np.zeros(3)
     h2, g2 = np.zeros((3, 3)), np.zeros(3)
-    x, y, th = x0, y0, th0
+    x, y, th = xs, ys, ths
     cost, fit = _cost_grad(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x, y, th, x0, y0, th0, w_t,
                            w_r, True, h, g)
     for _ in range(iterations):
@@ -375,4 +384,4 @@ def refine(lo, sx, sy, cnt, ox, oy, res, floor, sigma, px, py, nx, ny, x0, y0, t
             d *= 0.5
         if gain < STOP_GAIN * cost:
             break
-    return x, y, th, fit
+    return x, y, th, fit, cost

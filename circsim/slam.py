@@ -47,6 +47,7 @@ from .motion import Pose
 
 SLAM_MODELS = ("scan_matching", "odometry_only")
 WINDOW_SIGMAS = 3.0  # the correlative window covers this many standard deviations of the prediction
+MIN_SIGMA_M, MIN_SIGMA_RAD = 1e-4, 1e-5  # the prior's weight stays finite with exact odometry
 _FREE, _HIT = 1, 2  # codes in the per-scan mask
 _SHIFT = 8  # fractional bits of the sub-cell line end points given to OpenCV
 
@@ -66,21 +67,29 @@ class DriftConfig:
 @dataclass(frozen=True)
 class OdometryConfig:
     """Wheel-odometry noise of the ``scan_matching`` model: Probabilistic Robotics' α1–α4 (table 5.6) and
-    amcl's α5 for the sideways slip of a holonomic base.
+    amcl's α5 for the sideways slip of a holonomic base, in the corrected form σ = √(α·δ²).
 
-    alpha1 : rotation noise from rotation; alpha2 : rotation noise from translation; alpha3 : translation
-    noise from translation; alpha4 : translation noise from rotation (and sideways noise from rotation);
-    alpha5 : sideways noise from translation. ROS amcl's ``odom_alpha1``–``5`` and Nav2 amcl's
-    ``alpha1``–``5`` mean these, with 0.2 each as their default, taken here. The noise is drawn once per
-    scan (the odometry increment between two scans), so its effect over a path depends on ``dt_s``: at
-    the bench's 10 Hz and 0.2 m/s, about 0.6° of yaw and 1 cm of position per scan (1σ).
+    alpha1 : rotation noise from rotation (rad²/rad²); alpha2 : rotation noise from translation (rad²/m²);
+    alpha3 : translation noise from translation (m²/m²); alpha4 : translation (and sideways) noise from
+    rotation (m²/rad²); alpha5 : sideways noise from translation (m²/m²) — ROS amcl's ``odom_alpha1``–``5``.
+
+    Defaults: the noise of ROS amcl's defaults (every ``odom_alpha`` 0.2 with its default models
+    ``diff``/``omni``, which draw σ = α·δ², the form its ``*-corrected`` models fix: the ROS wiki warns
+    that these need "a lot smaller" α) at amcl's own update step (``update_min_d`` 0.2 m,
+    ``update_min_a`` π/6), written in the corrected form: α' = (0.2·δ)², 0.0016 for the terms in
+    translation (δ = 0.2 m), 0.011 for those in rotation (δ = π/6). That is σ = 0.008 rad of yaw and
+    8 mm per 0.2 m driven, as amcl assumes. Taking 0.2 itself in the corrected form (σ = 0.45·δ, about
+    0.6° of yaw per 10 Hz scan) makes odometry nearly worthless: with eight robots on one circle, which
+    all turn together and so look still to each other, the matcher then follows the formation instead
+    of the room (hall8 drifted 7° in 3 s). The noise is drawn once per scan, so its effect over a path
+    depends on ``dt_s``.
     """
 
-    alpha1: float = 0.2
-    alpha2: float = 0.2
-    alpha3: float = 0.2
-    alpha4: float = 0.2
-    alpha5: float = 0.2
+    alpha1: float = 0.011
+    alpha2: float = 0.0016
+    alpha3: float = 0.0016
+    alpha4: float = 0.011
+    alpha5: float = 0.0016
 
 
 @dataclass(frozen=True)
@@ -93,21 +102,21 @@ class MatcherConfig:
         caps, at least one cell and one angular step.
     max_points : scan points matched at most (every k-th valid return); Cartographer's adaptive voxel
         filter aims at 200.
-    translation_weight, rotation_weight : weights of the refinement's prior about the correlative pose
-        (per metre, per radian; Cartographer's Ceres matcher has 10 and 40 about the prediction, with a
-        smoother map). Small: they only hold a direction the scan does not constrain (a corridor's axis).
-    min_log_odds : cells below this log-odds are not matched (2.0: three net hits of the default 0.85;
-        while the map is younger, what its scans can have given). With the cells once seen free, which are
-        never matched, it keeps a teammate driving by from dragging the pose along its path: measured on
-        hall4, a robot's yaw drifted −1.6° in 30 s matching every occupied cell, −0.3° with both rules.
+    point_sigma_m : the standard deviation of a scan point's distance to the map's wall (the laser's
+        noise and the map's own); it weighs the scan against the odometry: the refinement is the most
+        probable pose given N such points and the odometry's prediction with its accumulated variance.
+    min_log_odds : cells below this log-odds are not matched (0.5: one hit of the default 0.85 is
+        enough; more hits delay the matching of what a sparse gmapping-rule map has just seen, and the
+        thesis scenes then drift by degrees). Cells once seen free are never matched: a teammate driving by
+        would drag the pose along its path (measured on hall4: a robot's yaw drifted −1.6° in 30 s
+        matching every occupied cell, −0.3° without those).
     """
 
     linear_window_m: float = 0.1
     angular_window_deg: float = 20.0
     max_points: int = 200
-    translation_weight: float = 1.0
-    rotation_weight: float = 1.0
-    min_log_odds: float = 2.0
+    point_sigma_m: float = 0.05
+    min_log_odds: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -282,8 +291,13 @@ class Slam:
         lin = min(m.linear_window_m, WINDOW_SIGMAS * math.sqrt(self._var_xy))
         ang = min(math.radians(m.angular_window_deg), WINDOW_SIGMAS * math.sqrt(self._var_yaw))
         e = self._est
+        # the prior's weights in the matcher's units (mean squared distance over a cell): the odometry's
+        # information relative to N points of σ point_sigma_m, −log p = Σ r²/2σ² + Δ²/2σ_odo²
+        k = m.point_sigma_m / (res * math.sqrt(px.size))
+        w_t = k / max(math.sqrt(self._var_xy), MIN_SIGMA_M)
+        w_r = k / max(math.sqrt(self._var_yaw), MIN_SIGMA_RAD)
         self.last_match = scanmatch.match(self.log_odds, self.hits, self.origin, res, self.config.log_odds.clamp, px, py,
-                                          nx, ny, (e.x, e.y, e.yaw), lin, ang, m.translation_weight, m.rotation_weight,
+                                          nx, ny, (e.x, e.y, e.yaw), lin, ang, w_t, w_r,
                                           min(m.min_log_odds, 0.99 * self.updates * self.config.log_odds.hit))
         self._est = Pose(self.last_match.x, self.last_match.y, _wrap_pi(self.last_match.yaw))
         self._var_xy = self._var_yaw = 0.0

@@ -25,7 +25,7 @@ Two stages, as Cartographer's 2D local SLAM does them (``RealTimeCorrelativeScan
    or |S(p) − μ| for a point without one; beyond two cells a point is an outlier.
 
 The correlative score of a cell is its log-odds clipped to [0, clamp] over clamp. Cells below
-``min_log_odds``, and cells once seen free (:meth:`HitMeans.forget`), are not matched. A cell (row r,
+``min_log_odds``, and cells hit while free (:meth:`HitMeans.forget`), are not matched. A cell (row r,
 column c) spans [origin + c·res, origin + (c + 1)·res) in x (rows in y), as in
 :class:`merger.grid.OccupancyGrid`.
 
@@ -63,9 +63,11 @@ class Match:
 
 class HitMeans:
     """Per cell, the sum of the scan returns (map-frame x, y) that fell in it and their count: the cell's
-    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A cell that has
-    been seen free is forgotten for good (its count is −∞): a return there came from something that moved
-    (a teammate driving by), and matching scans to its trace would drag the pose along its path."""
+    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A cell hit while
+    the map held it free is forgotten for good (its count is −∞): the return came from something that moved
+    in (a teammate driving by), and matching scans to its trace would drag the pose along its path. (A wall
+    is unknown until first hit; cells a wrong pose later clears are not forgotten, or a drifting estimate
+    would erase thin objects, chair legs, one lap after another.)"""
 
     def __init__(self, shape) -> None:
         self.sum_x = np.zeros(shape, np.float64)
@@ -79,9 +81,9 @@ class HitMeans:
                     np.ascontiguousarray(y, np.float64))
 
 
-    def forget(self, r0: int, r1: int, c0: int, c1: int, free: np.ndarray) -> None:
-        """Forget the cells of the window [r0:r1, c0:c1] where ``free`` is set."""
-        self.count[r0:r1, c0:c1][free] = -np.inf
+    def forget(self, rows: np.ndarray, cols: np.ndarray, which: np.ndarray) -> None:
+        """Forget the cells (rows, cols) where ``which`` is set: they are never matched again."""
+        self.count[rows[which], cols[which]] = -np.inf
 
 
 @njit(cache=True, nogil=True)

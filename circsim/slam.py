@@ -107,9 +107,9 @@ class MatcherConfig:
         probable pose given N such points and the odometry's prediction with its accumulated variance.
     min_log_odds : cells below this log-odds are not matched (0.5: one hit of the default 0.85 is
         enough; more hits delay the matching of what a sparse gmapping-rule map has just seen, and the
-        thesis scenes then drift by degrees). Cells once seen free are never matched: a teammate driving by
-        would drag the pose along its path (measured on hall4: a robot's yaw drifted −1.6° in 30 s
-        matching every occupied cell, −0.3° without those).
+        thesis scenes then drift by degrees). Cells hit while the map held them free are never matched:
+        a teammate driving by would drag the pose along its path (measured on hall4: a robot's yaw
+        drifted −1.6° in 30 s matching every occupied cell).
     """
 
     linear_window_m: float = 0.1
@@ -363,13 +363,13 @@ class Slam:
         ok = (hx >= 0) & (hx < c1 - c0) & (hy >= 0) & (hy < r1 - r0)
         mask[hy[ok], hx[ok]] = _HIT
         if self.hits is not None:
-            self.hits.add(hy[ok] + r0, hx[ok] + c0, pose.x + r[hit][ok] * cos[hit][ok],
-                          pose.y + r[hit][ok] * sin[hit][ok])
+            rows, cols = hy[ok] + r0, hx[ok] + c0
+            # a return in a cell the map holds free: something moved in (a teammate driving by), not a wall
+            self.hits.forget(rows, cols, self.log_odds[rows, cols] <= self._free_log_odds)
+            self.hits.add(rows, cols, pose.x + r[hit][ok] * cos[hit][ok], pose.y + r[hit][ok] * sin[hit][ok])
         lo = self.log_odds[r0:r1, c0:c1]
         lo += self._lut[mask]
         np.clip(lo, -self.config.log_odds.clamp, self.config.log_odds.clamp, out=lo)
-        if self.hits is not None:  # a cell once seen free is no wall: something moved through it
-            self.hits.forget(r0, r1, c0, c1, lo <= self._free_log_odds)
 
     # --- output -------------------------------------------------------------------------------
     def grid(self) -> OccupancyGrid:

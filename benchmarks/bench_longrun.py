@@ -73,8 +73,8 @@ class PerMinute(Observer):
             self.first_correct[c.robot] = c.t
 
 
-def run(name: str, duration: float, model: str | None, seed: int | None) -> None:
-    sets = [f"duration_s={duration}", "output.rrd=null", "output.json=null"]
+def run(name: str, duration: float, model: str | None, seed: int | None, extra=()) -> None:
+    sets = [f"duration_s={duration}", "output.rrd=null", "output.json=null", *extra]
     if model:
         sets.append(f"slam.model={model}")
     if seed is not None:
@@ -114,9 +114,10 @@ def main(argv=None) -> int:
     p.add_argument("--model", choices=("scan_matching", "odometry_only"), default=None,
                    help="slam.model (default: the scenario's)")
     p.add_argument("--seed", type=int, default=None, help="override the scenarios' seeds")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scenario overrides")
     a = p.parse_args(argv)
     for name in a.scenes:
-        run(name, a.duration, a.model, a.seed)
+        run(name, a.duration, a.model, a.seed, a.set)
     return 0
 
 

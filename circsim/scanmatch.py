@@ -65,9 +65,9 @@ class HitMeans:
     """Per cell, the sum of the scan returns (map-frame x, y) that fell in it and their count: the cell's
     mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A cell hit while
     the map held it free is forgotten for good (its count is −∞): the return came from something that moved
-    in (a teammate driving by), and matching scans to its trace would drag the pose along its path. (A wall
-    is unknown until first hit; cells a wrong pose later clears are not forgotten, or a drifting estimate
-    would erase thin objects, chair legs, one lap after another.)"""
+    in (a teammate driving by), and matching scans to its trace would drag the pose along its path. A wall is
+    unknown until its first hit. (Forgetting instead every cell once seen free selects the same cells for
+    matching: one seen free is below ``min_log_odds`` until hit again, and then it is hit while free.)"""
 
     def __init__(self, shape) -> None:
         self.sum_x = np.zeros(shape, np.float64)

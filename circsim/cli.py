@@ -129,6 +129,8 @@ def progress_observer(sc, quiet: bool):
 
 
 def summary(res) -> str:
+    from .metrics import false_merge_lines, slam_lines
+
     d = res.to_dict()
     lines = [f"scenario {d['scenario']}  seed {d['seed']}  simulated {d['sim_s']:.1f} s in {d['wall_s']:.1f} s "
              f"(realtime factor {d['realtime_factor'] or float('inf'):.1f})"
@@ -148,6 +150,7 @@ def summary(res) -> str:
     lines += ["", f"false merges {d['false_merges']}   rejected correct {d['rejected_correct']}   "
               + (f"merge cycle cost median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
                  if mc["count"] else "no merge cycle")]
+    lines += false_merge_lines(d) + slam_lines(d)
     cs = d.get("consensus_s")
     lines.append("consensus (every robot holds the same global alignment): "
                  + ("never" if cs is None else f"first at {cs:.1f} s, held {d['consensus_held_s']:.1f} s in all"

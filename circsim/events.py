@@ -46,6 +46,11 @@ class MergeCycle:
         kept from earlier) places correctly, each within both tolerances.
     adopted_from : not a merge cycle of the robot's own but a teammate's hypothesis it adopted (shared
         hypotheses, :mod:`merger.shared`): the sender's name; "" for the robot's own cycles.
+    est_truth_deg, est_angle_error_deg, est_translation_error_m, est_correct : the same judgement against
+        the *estimated-frame* truth: the alignment the maps as their SLAMs built them call for (from the
+        SLAMs' pose estimates when the held maps were published, :func:`circsim.sim.estimated_truth`). A
+        placement wrong against the start frames but right here is limited by the SLAM's drift, not the
+        merger's.
     """
 
     t: float
@@ -63,6 +68,10 @@ class MergeCycle:
     first_pair_correct: bool = False
     teammates_placed: int = 0
     adopted_from: str = ""
+    est_truth_deg: dict[str, float] = field(default_factory=dict)
+    est_angle_error_deg: dict[str, float] = field(default_factory=dict)
+    est_translation_error_m: dict[str, float] = field(default_factory=dict)
+    est_correct: bool = True
 
 
 class Observer:

@@ -23,6 +23,21 @@
   ``first_merge_s``, ``false_merges`` and ``teammates_placed`` (not for ``cycles`` or ``merge_cycle_ms``);
   per robot ``hypotheses_received`` / ``hypotheses_adopted``.
 
+Telling a wrong placement from a drift-limited one (issue 22). Every accepted alignment is also judged
+against the *estimated-frame* truth: the alignment the maps as their SLAMs built them call for (the
+transform between the SLAMs' map frames as estimated when the held maps were published,
+:func:`circsim.sim.estimated_truth`). ``false_merges`` stays the strict count (start-frame truth); of
+those, ``gross_merges`` are a flip or more than ``GROSS_DEG`` (10°) or ``GROSS_M`` (0.5 m) off for some
+map, and ``drift_limited_merges`` are within the tolerances of the estimated-frame truth and not gross: the
+merger placed the maps as built; the SLAM's drift made that wrong. ``false_merge_log`` lists every false
+merge: when, which robot and which maps, how far off against both truths, and its kind (``gross``,
+``drift_limited`` or ``other``). Per robot, ``accepted_error_max`` holds the worst angle and translation
+error of its accepted alignments against each truth.
+
+SLAM pose error: per robot, ``slam_pose_error`` samples the distance (m) and yaw difference (°) between
+its SLAM's pose estimate and its true pose (both in its map frame) at every whole simulated second,
+``[[t, m, deg], ...]``; ``slam_pose_error_max`` is the worst over every tick, ``{"m": ..., "deg": ...}``.
+
 Beyond DESIGN.md, per robot: ``final_angle_error_deg`` and ``final_translation_error_m`` (per map, of the
 alignment held at the end) and ``first_merge_translation_error_m`` (the largest translation error of the
 first correct merge). An alignment of map j onto map i is x_i = c_i + t + R(θ)(x_j − c_j); its angle error
@@ -44,6 +59,8 @@ from merger.team import Placement, compose
 
 from .events import MergeCycle, Observer
 
+GROSS_DEG = 10.0  # a false merge this far off in angle (or GROSS_M in translation) for some map is gross
+GROSS_M = 0.5
 JUDGE_EPS_DEG = 1e-9
 JUDGE_EPS_M = 1e-9
 CONSENSUS_TOL_DEG = 0.1
@@ -101,6 +118,13 @@ class RobotMetrics:
     maps_stale: int = 0  # teammates' maps dropped: not newer than the one held (out of order, repeated)
     hypotheses_received: int = 0  # teammates' hypotheses weighed (shared hypotheses)
     hypotheses_adopted: int = 0
+    gross_merges: int = 0  # false merges a flip, > GROSS_DEG or > GROSS_M off for some map
+    drift_limited_merges: int = 0  # false merges right against the estimated-frame truth, not gross
+    final_est_angle_error_deg: dict[str, float] | None = None  # held at the end, vs the estimated-frame truth
+    final_est_translation_error_m: dict[str, float] | None = None
+    accepted_error_max: dict = field(default_factory=dict)  # {"start"|"estimated": {"deg": .., "m": ..}}
+    slam_pose_error: list = field(default_factory=list)  # [[t, metres, degrees], ...] every whole second
+    slam_pose_error_max: dict = field(default_factory=lambda: {"m": 0.0, "deg": 0.0})
 
     @property
     def teammates_placed_final(self) -> int:
@@ -109,6 +133,7 @@ class RobotMetrics:
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
         d["teammates_placed"] = [list(p) for p in self.teammates_placed]
+        d["slam_pose_error"] = [list(p) for p in self.slam_pose_error]
         d["teammates_placed_final"] = self.teammates_placed_final
         return d
 
@@ -129,10 +154,19 @@ class RunResult:
     consensus_s: float | None = None
     consensus_final: bool = False
     consensus_held_s: float = 0.0
+    false_merge_log: list = field(default_factory=list)  # one dict per false merge (see the module doc)
 
     @property
     def false_merges(self) -> int:
         return sum(r.false_merges for r in self.robots.values())
+
+    @property
+    def gross_merges(self) -> int:
+        return sum(r.gross_merges for r in self.robots.values())
+
+    @property
+    def drift_limited_merges(self) -> int:
+        return sum(r.drift_limited_merges for r in self.robots.values())
 
     @property
     def rejected_correct(self) -> int:
@@ -155,7 +189,9 @@ class RunResult:
         return {
             "scenario": self.scenario, "seed": self.seed, "params": self.params,
             "robots": {n: r.to_dict() for n, r in self.robots.items()},
-            "false_merges": self.false_merges, "rejected_correct": self.rejected_correct,
+            "false_merges": self.false_merges, "gross_merges": self.gross_merges,
+            "drift_limited_merges": self.drift_limited_merges, "false_merge_log": self.false_merge_log,
+            "rejected_correct": self.rejected_correct,
             "merge_cycle_ms": self.merge_cycle_ms(),
             "realtime_factor": None if math.isinf(self.realtime_factor) else self.realtime_factor,
             "sim_s": self.sim_s, "wall_s": self.wall_s, "interrupted": self.interrupted,
@@ -163,6 +199,62 @@ class RunResult:
             "consensus_s": self.consensus_s, "consensus_final": self.consensus_final,
             "consensus_held_s": self.consensus_held_s,
         }
+
+
+def false_merge_kind(cycle: MergeCycle) -> str:
+    """"gross" (a flip, > GROSS_DEG or > GROSS_M off for some map, start-frame truth), "drift_limited"
+    (within the tolerances of the estimated-frame truth) or "other"."""
+    if any(e > GROSS_DEG for e in cycle.angle_error_deg.values()) \
+            or any(e > GROSS_M for e in cycle.translation_error_m.values()):
+        return "gross"
+    return "drift_limited" if cycle.est_correct else "other"
+
+
+def false_merge_entry(cycle: MergeCycle, kind: str, tol_deg: float, tol_m: float) -> dict:
+    """A false merge for the JSON: when, which robot, its kind, and per misplaced map (beyond ``tol_deg``
+    or ``tol_m`` against the start-frame truth) how far off against both truths."""
+    maps = {}
+    for k, e in cycle.angle_error_deg.items():
+        te = cycle.translation_error_m.get(k, 0.0)
+        if e > tol_deg + JUDGE_EPS_DEG or te > tol_m + JUDGE_EPS_M:
+            maps[k] = {"angle_error_deg": e, "translation_error_m": te,
+                       "est_angle_error_deg": cycle.est_angle_error_deg.get(k),
+                       "est_translation_error_m": cycle.est_translation_error_m.get(k)}
+    return {"t": cycle.t, "robot": cycle.robot, "kind": kind, "adopted_from": cycle.adopted_from or None,
+            "maps": maps}
+
+
+def _worst(into: dict, key: str, deg: dict, m: dict) -> None:
+    w = into.setdefault(key, {"deg": 0.0, "m": 0.0})
+    w["deg"] = max(w["deg"], max(deg.values(), default=0.0))
+    w["m"] = max(w["m"], max(m.values(), default=0.0))
+
+
+def false_merge_lines(d: dict, limit: int = 10) -> list[str]:
+    """The false merges of a metrics dict (``RunResult.to_dict()``) for a summary: counts by kind, then
+    one line each (at most ``limit``; the JSON has them all)."""
+    log = d.get("false_merge_log") or []
+    if not log:
+        return []
+    out = [f"false merges: {d['false_merges']} ({d['gross_merges']} gross: a flip, > {GROSS_DEG:g}° or > "
+           f"{GROSS_M:g} m; {d['drift_limited_merges']} drift-limited: right for the maps as their SLAMs "
+           f"built them)"]
+    for e in log[:limit]:
+        what = "; ".join(f"{k} off {v['angle_error_deg']:.2f}° / {100 * v['translation_error_m']:.1f} cm "
+                         f"(vs SLAM frames {v['est_angle_error_deg']:.2f}° / {100 * v['est_translation_error_m']:.1f} cm)"
+                         for k, v in e["maps"].items())
+        out.append(f"  {e['t']:7.1f} s  {e['robot']}: {e['kind']}: {what}")
+    if len(log) > limit:
+        out.append(f"  … {len(log) - limit} more in the JSON (false_merge_log)")
+    return out
+
+
+def slam_lines(d: dict) -> list[str]:
+    """Each robot's worst SLAM pose error, for a summary."""
+    parts = [f"{n} {r['slam_pose_error_max']['m'] * 100:.1f} cm / {r['slam_pose_error_max']['deg']:.2f}°"
+             for n, r in d["robots"].items() if r.get("slam_pose_error_max")]
+    model = (d.get("params") or {}).get("slam_model", "")
+    return [f"SLAM ({model}) worst pose error: " + ", ".join(parts)] if parts else []
 
 
 def spread(held: dict[str, dict[str, Placement]], team) -> tuple[float, float] | None:
@@ -192,14 +284,32 @@ def in_consensus(held: dict[str, dict[str, Placement]], team, tol_deg: float = C
 
 class MetricsObserver(Observer):
     """Accumulates :class:`RunResult` figures from the run's events; ``cell_m``: the consensus's
-    translation tolerance (one cell of the robots' grids)."""
+    translation tolerance (one cell of the robots' grids); ``tol_deg``, ``tol_m``: the correctness
+    tolerances (``merger.correct_tol_deg`` / ``correct_tol_m``), to name a false merge's misplaced maps."""
 
-    def __init__(self, result: RunResult, arc_of, *, cell_m: float = 0.05) -> None:
+    def __init__(self, result: RunResult, arc_of, *, cell_m: float = 0.05, tol_deg: float = 2.0,
+                 tol_m: float = 0.1) -> None:
         self.result = result
+        self.tol_deg, self.tol_m = float(tol_deg), float(tol_m)
         self._arc_of = arc_of  # (robot, t) -> degrees travelled
         self.cell_m = float(cell_m)
         self.held: dict[str, dict[str, Placement]] = {}  # per robot, the placements of the alignment it holds
         self._agree_since: float | None = None  # when the current consensus began (None: none now)
+        self._next_sample_s: float | None = None  # the next whole second of the SLAM pose error
+
+    def on_tick(self, t, step, ticks) -> None:
+        sample = self._next_sample_s is None or t + 1e-9 >= self._next_sample_s
+        if sample:
+            self._next_sample_s = math.floor(t + 1e-9) + 1.0
+        for k in ticks:
+            (tx, ty, tyaw), (ex, ey, eyaw) = k.true_pose, k.est_pose_world
+            m_err = math.hypot(ex - tx, ey - ty)
+            deg = abs(math.degrees((eyaw - tyaw + math.pi) % (2.0 * math.pi) - math.pi))
+            r = self.result.robots[k.name]
+            mx = r.slam_pose_error_max
+            mx["m"], mx["deg"] = max(mx["m"], m_err), max(mx["deg"], deg)
+            if sample:
+                r.slam_pose_error.append([t, m_err, deg])
 
     def on_hypothesis(self, t, recipient, adoption) -> None:
         m = self.result.robots[recipient]
@@ -252,8 +362,16 @@ class MetricsObserver(Observer):
             m.accepted += 1
             m.final_angle_error_deg = dict(cycle.angle_error_deg)
             m.final_translation_error_m = dict(cycle.translation_error_m)
+            m.final_est_angle_error_deg = dict(cycle.est_angle_error_deg)
+            m.final_est_translation_error_m = dict(cycle.est_translation_error_m)
+            _worst(m.accepted_error_max, "start", cycle.angle_error_deg, cycle.translation_error_m)
+            _worst(m.accepted_error_max, "estimated", cycle.est_angle_error_deg, cycle.est_translation_error_m)
             if cycle.false_merge:
                 m.false_merges += 1
+                kind = false_merge_kind(cycle)
+                m.gross_merges += kind == "gross"
+                m.drift_limited_merges += kind == "drift_limited"
+                self.result.false_merge_log.append(false_merge_entry(cycle, kind, self.tol_deg, self.tol_m))
             elif cycle.complete and m.first_merge_s is None:
                 m.first_merge_s = cycle.t
                 m.first_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)

@@ -177,8 +177,11 @@ class OfflineBench:
         self.center_errors: dict[str, tuple[float, float]] = {}
         for n in self.names:
             rng = np.random.default_rng(next(streams))
-            self.slams[n] = (ArcDriftSlam(sc.slam, self.start_poses[n], rng, sc.robots.radius_m)
-                             if drift == "arc" else Slam(sc.slam, self.start_poses[n], rng))
+            # the displacement experiment keeps its drift models (random walks in the arc or the path),
+            # whatever the scenario's online SLAM model
+            cfg = replace(sc.slam, model="odometry_only")
+            self.slams[n] = (ArcDriftSlam(cfg, self.start_poses[n], rng, sc.robots.radius_m)
+                             if drift == "arc" else Slam(cfg, self.start_poses[n], rng))
             self.laser_rngs[n] = np.random.default_rng(next(streams))
             c = self.slams[n].true_to_map(np.array(sc.world.center, np.float64))
             self.centers[n] = (float(c[0]) + errors[n][0], float(c[1]) + errors[n][1])

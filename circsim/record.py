@@ -33,8 +33,12 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
                                             (strategy tree: of each tree edge's pair search)
     /plots/<robot>/nu                       Scalars: ν of the cycle's top hypothesis per pair, and ν_min
     /plots/<robot>/support                  Scalars: support (agr̃ + dis) per pair, and min_support
-    /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge
-    /plots/<robot>/translation_error_m      Scalars: |t − t*| (metres) per teammate, at every accepted merge
+    /plots/<robot>/angle_error_deg          Scalars: |θ − θ*| per teammate, at every accepted merge, and
+                                            against the estimated-frame truth ("vs SLAM frames")
+    /plots/<robot>/translation_error_m      Scalars: |t − t*| (metres) per teammate, at every accepted merge,
+                                            and against the estimated-frame truth
+    /plots/<robot>/slam_pose_error          Scalars: its SLAM pose estimate's error, every tick: position (cm)
+                                            and yaw (°) (sent in columns with the poses)
     /plots/<robot>/cycle_ms                 Scalars: merge cycle cost (wall time + shared results taken, merger.memo)
     /plots/<robot>/teammates_placed         Scalars: teammates its held alignment places correctly, and the
                                             maps of the cycle (a partial team merges fewer than all)
@@ -531,9 +535,13 @@ class RerunRecorder(Observer):
                      + [("min_support", cfg.min_support, _GREY)])
         if res.accepted:
             self._series(f"{base}/angle_error_deg", [(f"{m} angle error (°)", e, self.colours.get(m))
-                                                     for m, e in c.angle_error_deg.items() if m != n])
+                                                     for m, e in c.angle_error_deg.items() if m != n]
+                         + [(f"{m} vs SLAM frames (°)", e, _dim(self.colours.get(m, _GREY)))
+                            for m, e in c.est_angle_error_deg.items() if m != n])
             t_errs = [(f"{m} translation error (m)", e, self.colours.get(m))
-                      for m, e in c.translation_error_m.items() if m != n]
+                      for m, e in c.translation_error_m.items() if m != n] \
+                + [(f"{m} vs SLAM frames (m)", e, _dim(self.colours.get(m, _GREY)))
+                   for m, e in c.est_translation_error_m.items() if m != n]
             if t_errs:
                 self._series(f"{base}/translation_error_m", t_errs)
         if not c.adopted_from:
@@ -569,6 +577,23 @@ class RerunRecorder(Observer):
                 q = np.stack([np.zeros_like(x), np.zeros_like(x), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
                 rr.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(translation=tr, quaternion=q),
                                 recording=self.rec)
+            self._send_pose_errors(n, idx, a)
+
+    def _send_pose_errors(self, n: str, idx, a: np.ndarray) -> None:
+        """The SLAM pose error of rows (t, step, true x y yaw in W, estimate x y yaw in M_i) as two series."""
+        sx, sy, syaw = self.start_poses[n]
+        c, s = math.cos(syaw), math.sin(syaw)
+        dx, dy = a[:, 2] - sx, a[:, 3] - sy  # the true pose in M_i
+        tx, ty, tyaw = c * dx + s * dy, -s * dx + c * dy, a[:, 4] - syaw
+        cm = 100.0 * np.hypot(a[:, 5] - tx, a[:, 6] - ty)
+        deg = np.abs(np.degrees((a[:, 7] - tyaw + np.pi) % (2.0 * np.pi) - np.pi))
+        path = f"plots/{_part(n)}/slam_pose_error"
+        if path not in self.series:
+            self.series[path] = ("position error (cm)", "yaw error (°)")
+            self.rec.log(path, rr.SeriesLines(names=list(self.series[path]),
+                                              colors=[self.colours[n], _dim(self.colours[n])]), static=True)
+        rr.send_columns(path, indexes=idx, columns=rr.Scalars.columns(scalars=np.stack([cm, deg], axis=1)),
+                        recording=self.rec)
 
     def _flush_pending(self, t: float) -> None:
         for n in list(self.merged_pending):
@@ -611,6 +636,7 @@ def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
                                   ("angle_error_deg", "accepted angle error vs truth (°)"),
                                   ("translation_error_m", "accepted translation error vs truth (m)"))]
         ts.append(rrb.TimeSeriesView(name=f"{n}: teammates correctly placed", origin=f"/plots/{p}/teammates_placed"))
+        ts.append(rrb.TimeSeriesView(name=f"{n}: SLAM pose error (cm, °)", origin=f"/plots/{p}/slam_pose_error"))
         ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle cost (ms)", origin=f"/plots/{p}/cycle_ms"))
         return rrb.Vertical(*ts, name=n)
 

@@ -31,7 +31,7 @@ from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, S
 
 from .laser import LaserConfig
 from .network import NetworkConfig
-from .slam import DriftConfig, LogOddsConfig, SlamConfig
+from .slam import SLAM_MODELS, DriftConfig, LogOddsConfig, MatcherConfig, OdometryConfig, SlamConfig
 from .validate import (
     Invalid,
     bad,
@@ -368,7 +368,11 @@ _LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer
                                "range_min_m": _NONNEG, "rate_hz": _POS, "noise_std_m": _NONNEG,
                                "dropout": number(ge=0, lt=1), "noise_rel": number(ge=0, lt=1)})
 _SLAM = section(SlamConfig, {
-    "resolution_m": _POS, "size_m": _POS,
+    "model": choice(*SLAM_MODELS), "resolution_m": _POS, "size_m": _POS,
+    "odometry": section(OdometryConfig, {f"alpha{k}": _NONNEG for k in range(1, 6)}),
+    "matcher": section(MatcherConfig, {"linear_window_m": _NONNEG, "angular_window_deg": number(ge=0, le=180),
+                                       "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": _POS,
+                                       "min_log_odds": _NONNEG}),
     "drift": section(DriftConfig, {"xy_m_per_m": _NONNEG, "yaw_deg_per_m": _NONNEG}),
     "log_odds": section(LogOddsConfig, {"hit": _POS, "miss": number(lt=0), "clamp": _POS}),
     "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS,

@@ -93,13 +93,28 @@ def truth_translation(theta_deg: float, e_i, e_j) -> tuple[float, float]:
     return (c * e_j[0] - s * e_j[1] - e_i[0], s * e_j[0] + c * e_j[1] - e_i[1])
 
 
+def estimated_truth(frame_i, frame_j, c_i, c_j) -> tuple[float, tuple[float, float]]:
+    """The alignment of map j onto map i that the maps *as built* call for: θ̂ (degrees in [0, 360)) and t̂
+    about the given centers, from each map's frame as its SLAM built it (:meth:`circsim.slam.Slam.
+    map_frame_estimate`, poses in W). With T = F_i⁻¹ ∘ F_j (map j's coordinates to map i's),
+    x_i = c_i + t̂ + R(θ̂)(x_j − c_j) holds for θ̂ = yaw(T) and t̂ = R(θ̂)·c_j + p_T − c_i. With exact SLAM
+    (F = the start poses) this is the start-frame truth (θ*, t*)."""
+    yaw = frame_j[2] - frame_i[2]
+    ci, si = math.cos(frame_i[2]), math.sin(frame_i[2])
+    dx, dy = frame_j[0] - frame_i[0], frame_j[1] - frame_i[1]
+    px, py = ci * dx + si * dy, -si * dx + ci * dy
+    c, s = math.cos(yaw), math.sin(yaw)
+    return math.degrees(yaw) % 360.0, (c * c_j[0] - s * c_j[1] + px - c_i[0], s * c_j[0] + c * c_j[1] + py - c_i[1])
+
+
 def run_params(sc: Scenario) -> dict:
     """The parameters a sweep varies, flattened for the run record."""
     d = scenario_to_dict(sc)
     return {"center_error": d["center_error"], "network": d["network"], "merger": d["merger"],
             "duration_s": sc.duration_s, "dt_s": sc.dt_s, "motion": sc.robots.motion,
             "speed_mps": sc.robots.speed_mps, "radius_m": sc.robots.radius_m,
-            "drift": d["slam"]["drift"], "laser_noise_std_m": sc.laser.noise_std_m}
+            "slam_model": sc.slam.model, "odometry": d["slam"]["odometry"], "drift": d["slam"]["drift"],
+            "laser_noise_std_m": sc.laser.noise_std_m}
 
 
 class Simulation:
@@ -150,9 +165,13 @@ class Simulation:
         self.truth_translation_m = {i: {j: truth_translation(self.truth_deg[i][j], self.center_errors[i],
                                                              self.center_errors[j])
                                         for j in self.robot_names} for i in self.robot_names}
+        # per robot, the frame its SLAM had built its map in (W) when it published it, by the map's stamp
+        self.map_frames: dict[str, dict[float, tuple[float, float, float]]] = {n: {} for n in self.robot_names}
         self.result = RunResult(sc.name, self.seed, run_params(sc),
                                 {n: RobotMetrics() for n in self.robot_names})
-        self.observers = [MetricsObserver(self.result, self.arc_deg, cell_m=sc.slam.resolution_m), *observers]
+        self.observers = [MetricsObserver(self.result, self.arc_deg, cell_m=sc.slam.resolution_m,
+                                          tol_deg=sc.merger.correct_tol_deg, tol_m=sc.merger.correct_tol_m),
+                          *observers]
 
     def arc_deg(self, robot: str, t: float) -> float:
         """Degrees of its circle the robot has travelled by ``t`` (0 unless it drives: motion online)."""
@@ -197,6 +216,7 @@ class Simulation:
             if t + eps >= r.next_publish_s and r.slam.updates:
                 r.next_publish_s += self.scenario.slam.publish_period_s
                 msg = MapMessage(n, t, r.slam.grid(), r.center_given)
+                self.map_frames[n][t] = tuple(r.slam.map_frame_estimate())
                 r.merger.receive(msg)
                 r.inbox_new.append(n)
                 self._emit("on_map_published", t, n, msg.grid, r.center_given, r.center_true)
@@ -238,6 +258,13 @@ class Simulation:
         found_t = {k: top.translation(k) for k in top.theta_deg}
         errors, t_errors, correct = judge_placement(top.theta_deg, found_t, truth, truth_t, m.correct_tol_deg,
                                                     m.correct_tol_m)
+        est_truth, est_truth_t = {}, {}
+        frame_i = self.map_frames[r.name][r.merger.maps[r.name].stamp]
+        for k in held:
+            est_truth[k], est_truth_t[k] = estimated_truth(frame_i, self.map_frames[k][r.merger.maps[k].stamp],
+                                                           r.center_given, self.centers_given[k])
+        est_errors, est_t_errors, est_correct = judge_placement(top.theta_deg, found_t, est_truth, est_truth_t,
+                                                                m.correct_tol_deg, m.correct_tol_m)
         complete = len(top.theta_deg) == len(r.merger.team)
         first = res.accepted and correct and complete and not r.first_correct
         r.first_correct |= first
@@ -251,7 +278,9 @@ class Simulation:
                                                 res.accepted and not correct, truth_translation_m=truth_t,
                                                 translation_error_m=t_errors, complete=complete,
                                                 first_pair_correct=first_pair,
-                                                teammates_placed=r.teammates_placed, adopted_from=adopted_from))
+                                                teammates_placed=r.teammates_placed, adopted_from=adopted_from,
+                                                est_truth_deg=est_truth, est_angle_error_deg=est_errors,
+                                                est_translation_error_m=est_t_errors, est_correct=est_correct))
         if self.result.consensus_s == t and not self._consensus_told:
             self._consensus_told = True
             self._emit("on_event", t, "info", f"CONSENSUS: every robot holds the same global alignment (within "

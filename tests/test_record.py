@@ -373,6 +373,15 @@ def test_run_recording_matches_the_metrics(short_run):
         assert len(rec[f"/merge/{n}/overlay"]) == len(rec[f"/world/robots/{n}/map/merged"])
         ticks = int(round(d["sim_s"] / d["params"]["dt_s"])) + 1
         assert len([r for r in rec[f"/world/robots/{n}/pose"] if not r["static"]]) == ticks
+        # the SLAM pose error every tick; at whole seconds it is the JSON's sample (cm there, m in the JSON)
+        err = series(rec, f"/plots/{n}/slam_pose_error")
+        assert len(err["position error (cm)"]) == len(err["yaw error (°)"]) == ticks
+        at = {round(t, 6): v for t, v in err["position error (cm)"]}
+        at_deg = {round(t, 6): v for t, v in err["yaw error (°)"]}
+        for t, m_err, deg in m["slam_pose_error"]:
+            assert at[round(t, 6)] == pytest.approx(100 * m_err, abs=1e-6)
+            assert at_deg[round(t, 6)] == pytest.approx(deg, abs=1e-6)
+        assert max(v for _, v in err["position error (cm)"]) == pytest.approx(100 * m["slam_pose_error_max"]["m"])
     metrics_doc = rec["/run/metrics"][0]["TextDocument:text"][0]
     assert json.loads(metrics_doc.split("```json\n")[1].split("\n```")[0])["robots"] == d["robots"]
 

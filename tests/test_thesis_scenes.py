@@ -13,7 +13,8 @@ from circsim.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation
 from circsim.slam import DriftConfig, Slam, SlamConfig
 
-GMAPPING = SlamConfig(drift=DriftConfig(0.0, 0.0), linear_update_m=1.0, angular_update_rad=0.5)
+GMAPPING = SlamConfig(model="odometry_only", drift=DriftConfig(0.0, 0.0), linear_update_m=1.0,
+                      angular_update_rad=0.5)
 
 
 def a_scan():
@@ -21,7 +22,8 @@ def a_scan():
 
 
 def test_every_scan_is_integrated_by_default():
-    slam = Slam(SlamConfig(drift=DriftConfig(0.0, 0.0)), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    slam = Slam(SlamConfig(model="odometry_only", drift=DriftConfig(0.0, 0.0)), (0.0, 0.0, 0.0),
+                np.random.default_rng(0))
     for k in range(5):
         slam.update((0.01 * k, 0.0, 0.0), a_scan())
     assert slam.updates == 5

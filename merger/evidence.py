@@ -16,8 +16,11 @@ the placement stands above the same maps' other placements:
   (``RIVAL_STEP_DEG`` steps); the scan's ``RIVAL_REFINED`` highest local maxima are refined like the
   best, and one that climbs to its limit towards the placement is the placement's own shoulder, not a
   rival (a broad peak, e.g. large rooms near the center).
-* **contrast** = best / rival. Accepted when contrast ≥ ``contrast_min`` and b has at least
-  ``min_support`` occupied cells on a's known cells. A point-symmetric scene has a rival as good as the
+* **contrast** = best / rival. Accepted when contrast ≥ ``contrast_min``, b has at least
+  ``min_support`` occupied cells on a's known cells, and the best fit lies within ``AGREE_DEG`` of the
+  placement's angle: the contrast says the placement is in the right basin, the agreement that the
+  search's answer is where the whole maps fit (on bent real maps an ROI's optimum was 3–9° off with a
+  contrast of 2–4; measured in docs/merging-real-maps.md). A point-symmetric scene has a rival as good as the
   best (contrast ≈ 1) and is refused, as the thesis's rule would; a correct alignment of noisy maps
   stands well above its rivals even when ω̃ is low.
 
@@ -41,6 +44,7 @@ RIVAL_STEP_DEG = 2.0
 RIVAL_REFINED = 3
 STEPS = ((1.0, 2.0), (0.5, 1.0), (0.25, 0.5), (0.1, 0.25))  # (degrees, cells) of the pattern search
 TOLERANCE_M = 0.2
+AGREE_DEG = 2.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast)
 CONTRAST_MIN = 1.5  # real maps: correct placements 1.6–5.4, placements 20–180° off ≤ 0.56 (docs/merging-real-maps.md)
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .evidence import Contrast, contrast
+from .evidence import AGREE_DEG, Contrast, contrast
 from .grid import OccupancyGrid
 from .similarity import Counts, similarity_index
 from .transform import overlap
@@ -55,6 +55,10 @@ def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: f
     if k.support < min_support:
         return Verification(s.value, s.counts, False, f"support{name} = {k.support} occupied cells on known "
                             f"cells < min_support {min_support}", k)
+    if abs(k.best_at[0]) > AGREE_DEG:
+        return Verification(s.value, s.counts, False,
+                            f"the whole maps{name} fit best {k.best_at[0]:+.1f}° from the placement (more than "
+                            f"{AGREE_DEG:g}°): the ROI's answer is not where the maps agree", k)
     if k.contrast < contrast_min:
         return Verification(s.value, s.counts, False,
                             f"contrast{name} = {k.contrast:.2f} < contrast_min {contrast_min:g} (fit {k.best:.3f}, "

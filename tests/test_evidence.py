@@ -13,6 +13,7 @@ from merger.evidence import CONTRAST_MIN, contrast
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from merger.search import angle_diff_deg
 from merger.team import Warps, shifted
+from merger.verify import verify_contrast
 
 from .conftest import three_views
 
@@ -51,6 +52,20 @@ def test_a_correct_placement_of_noisy_maps_stands_above_its_rivals_and_wrong_one
     for off in (20.0, 45.0, 90.0, 180.0):
         wrong = placed_contrast(maps, (truth + off) % 360.0)
         assert wrong.contrast < 1.0, off  # the truth is its rival
+
+
+def test_a_placement_a_few_degrees_off_stands_above_its_rivals_but_is_refused_by_the_agreement(noisy):
+    """4° off the truth is still in the truth's basin (contrast well above 1), but the whole maps fit best
+    about 4° away from it: refused, not accepted a few degrees wrong."""
+    maps, truth = noisy
+    placed = Warps(maps).get(0, 1, (truth + 4.0) % 360.0)
+    v = verify_contrast(maps[0].grid, placed, maps[0].center, tolerance_m=0.2, contrast_min=CONTRAST_MIN,
+                        min_support=200)
+    assert v.contrast.contrast >= CONTRAST_MIN and abs(v.contrast.best_at[0] + 4.0) <= 1.0
+    assert not v.passed and "fit best" in v.reason
+    right = verify_contrast(maps[0].grid, Warps(maps).get(0, 1, truth), maps[0].center, tolerance_m=0.2,
+                            contrast_min=CONTRAST_MIN, min_support=200)
+    assert right.passed, right.reason
 
 
 def test_merge_cycles_with_the_contrast_rule_accept_noisy_maps_at_the_true_angle(noisy):

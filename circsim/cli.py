@@ -274,6 +274,10 @@ def cmd_run(args) -> int:
                   f"the run's figures are above", file=sys.stderr)
             failed = True
     if failed:
+        if recorder is not None and recorder.stuck:  # rerun's exit hook would block forever on its dead writer
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(2)
         return 2
     return interrupted_code() if res.interrupted else 0
 

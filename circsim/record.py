@@ -116,6 +116,7 @@ class RecordingError(ValueError):
 
 
 ATTACH_TIMEOUT_S = 10.0  # setting the file sink takes milliseconds; rerun 0.41 blocks forever when its writer dies
+DISCONNECT_TIMEOUT_S = 30.0  # closing after the flush: the same block when the writer died during the run
 
 
 def _within(fn, timeout_s: float) -> None:
@@ -174,7 +175,7 @@ class RerunRecorder(Observer):
             raise ValueError(f"scan_log_hz must be > 0, got {scan_log_hz}")
         self.path = None if path is None else str(path)
         self.part: str | None = None  # the temporary file the recording is written to, renamed at the end
-        self.stuck = False  # rerun blocked for good while starting the file (the process must not wait for it)
+        self.stuck = False  # rerun blocked for good starting or closing the file (the process must not wait for it)
         self.write_error: str | None = None  # why the recording could not be completed (one line), if so
         self.spawn = spawn
         self.scan_period_s = 1.0 / float(scan_log_hz)
@@ -342,7 +343,16 @@ class RerunRecorder(Observer):
                 rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
             except RuntimeError as e:  # e.g. the live viewer was closed: the file sink is unaffected
                 print(f"circsim: rerun: {e}", file=sys.stderr)
-            rec.disconnect()
+            try:
+                _within(rec.disconnect, DISCONNECT_TIMEOUT_S)
+            except TimeoutError:  # rerun's file writer died during the run (a full disk): it never returns
+                self.stuck = True
+                if self.part:
+                    os.unlink(self.part)
+                    self.part = None
+                self.write_error = (f"{self.path}: cannot write the recording (rerun's file writer stopped; a "
+                                    "full disk?); nothing replaced")
+                return
             self._place_recording()
         finally:
             if main:

@@ -31,6 +31,13 @@ def test_sigterm_during_a_run_completes_the_recording_and_the_json(tmp_path):
 
         wait_for(lambda: grown() or proc.poll() is not None, 120, "the recording to grow")
         assert proc.poll() is None, proc.communicate()
+        # and grow on: ticks are being recorded (the static scene alone can pass 200 kB while the first
+        # tick still compiles the SLAM's kernels on a cold cache)
+        s0 = max(p.stat().st_size for p in tmp_path.glob(".t.rrd.*.part.rrd"))
+        wait_for(lambda: proc.poll() is not None or
+                 max((p.stat().st_size for p in tmp_path.glob(".t.rrd.*.part.rrd")), default=0) > s0 + 100_000,
+                 120, "the recording to grow with the run")
+        assert proc.poll() is None, proc.communicate()
         assert not js.exists()  # the JSON appears once, whole, at the end
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=120)

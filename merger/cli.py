@@ -145,7 +145,8 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--verification", choices=("whole_map", "contrast"), default=d.verification,
                    help="whole_map: whole-map ω̃ ≥ --nu-min (the thesis); contrast: for maps from independent runs "
                         "(real maps), the whole-map fit within --tolerance must stand --contrast-min times above "
-                        f"the best rival placement (default {d.verification})")
+                        "the best rival placement and peak within 2° of the answer (docs/merging-real-maps.md; "
+                        f"default {d.verification})")
     p.add_argument("--tolerance", type=float, default=d.tolerance_m, metavar="M",
                    help=f"contrast: walls this close count as agreeing, metres (default {d.tolerance_m})")
     p.add_argument("--contrast-min", type=float, default=d.contrast_min,

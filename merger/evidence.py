@@ -2,7 +2,7 @@
 
 Maps of one place from independent runs disagree cell by cell: thick or doubled walls, walls a cell or
 two apart, maps bent by their SLAM. The thesis's whole-map ω̃ counts only exact cell agreement, and on
-such maps it stays low at the true placement (Halmstad: 0.16–0.49) while wrong placements reach 0.36,
+such maps it stays low at the true placement (Halmstad, ROI 8 m cases: 0.16–0.42, median 0.30),
 so no fixed ν_min separates them (docs/merging-real-maps.md). This verification asks instead how far
 the placement stands above the same maps' other placements:
 
@@ -20,7 +20,7 @@ the placement stands above the same maps' other placements:
   ``min_support`` occupied cells on a's known cells, and the best fit lies within ``AGREE_DEG`` of the
   placement's angle: the contrast says the placement is in the right basin, the agreement that the
   search's answer is where the whole maps fit (on bent real maps an ROI's optimum was 3–9° off with a
-  contrast of 2–4; measured in docs/merging-real-maps.md). A point-symmetric scene has a rival as good as the
+  contrast of 1.9–5.5; measured in docs/merging-real-maps.md). A point-symmetric scene has a rival as good as the
   best (contrast ≈ 1) and is refused, as the thesis's rule would; a correct alignment of noisy maps
   stands well above its rivals even when ω̃ is low.
 
@@ -45,7 +45,7 @@ RIVAL_REFINED = 3
 STEPS = ((1.0, 2.0), (0.5, 1.0), (0.25, 0.5), (0.1, 0.25))  # (degrees, cells) of the pattern search
 TOLERANCE_M = 0.2
 AGREE_DEG = 2.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast)
-CONTRAST_MIN = 1.5  # real maps: correct placements 1.6–5.4, placements 20–180° off ≤ 0.56 (docs/merging-real-maps.md)
+CONTRAST_MIN = 1.5  # real maps: search answers 1.4–5.5, placements 20–180° off them ≤ 0.56 (docs/merging-real-maps.md)
 
 
 @dataclass(frozen=True)

@@ -448,7 +448,9 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
 
 def _beyond(order: OrderResult) -> str:
     """Why the chosen order is refused because a search of it found a better alignment outside the
-    translation window ("" if none did; see :func:`merger.search.beyond_window`)."""
+    translation window ("" if none did; see :func:`merger.search.beyond_window`). The steps' guards are
+    computed side by side (merger.pool; each is a pure function of its search, the same on any schedule)."""
+    parallel_map(lambda step: step[1].beyond, [s for s in order.steps if s[1].window_m > 0])
     for name, al in order.steps:
         if al.window_m > 0 and al.beyond is not None:
             th, t, v = al.beyond

@@ -26,7 +26,14 @@ import numpy as np
 
 from ..similarity import Counts, measure_fn
 from . import caches
-from .kernels import branch_and_bound, exact_counts, exact_counts_sparse, fill_moving, sparse_moving
+from .kernels import (
+    branch_and_bound,
+    exact_counts,
+    exact_counts_sparse,
+    fill_moving,
+    moving_points_all,
+    sparse_moving,
+)
 from .lattice import rotation_entries
 from .measures import NCC, uppers
 from .polar import angle_bounds, polar_tables
@@ -44,9 +51,11 @@ from .problem import (
 
 COARSE = np.arange(360.0)
 _NO_INIT = (np.zeros((0, 6), np.int64), np.zeros(0))
+_NO_POINTS = np.zeros(0, np.int32)
 SLOT_BYTES = 8 * 2**20  # the moving ROIs kept per search (dense states and occupied points) ...
 MAX_SLOTS = 32  # ... at most this many angles (a search evaluates few angles exactly)
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
+POINTS_BYTES = 32 * 2**20  # the coarse angles' occupied lattice points kept per moving map, at most this size
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
 BEYOND_BUDGET = 40000  # regions the guard may bound (a count: deterministic); best-first, a better placement
@@ -130,10 +139,22 @@ class Searcher:
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env,
                                   *(_NO_INIT if init is None else init), p.occ_x, p.occ_y,
-                                  self.mark, self.gen)
+                                  self.mark, self.gen, p.ref_sat, *self._points(angles))
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
         return inc, env
+
+    def _points(self, angles: np.ndarray):
+        """The moving ROI's occupied lattice points at every angle of ``angles`` (start, count, buffer) for
+        the coarse angles, kept per moving map (every search of a cycle with this map moving reads them);
+        for other angles, or when they would be large, none (the kernel computes the angles it needs)."""
+        if not (angles.shape == COARSE.shape and np.array_equal(angles, COARSE)) or \
+                self.p.occ_x.size * 2 * COARSE.size * 4 > POINTS_BYTES:
+            return np.full(angles.size, -1, np.int64), np.zeros(angles.size, np.int64), _NO_POINTS
+        p = self.p
+        return caches.moving_side(
+            p.problem.moving, ("points", tuple(p.ctx_f[1:7]), p.n, p.res),
+            lambda: moving_points_all(p.mstates, *p.ctx_f[1:6], p.n, p.res, _COARSE_ROT, p.occ_x, p.occ_y))
 
     def exact(self, theta_deg: float, a: int, b: int) -> tuple[float, Counts]:
         """The exact value and counts (free/free included) at one (θ, t) in cells."""

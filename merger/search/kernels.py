@@ -31,7 +31,6 @@ from .measures import BIRK_CARPIN, NCC, upper_of, value_of
 EPS_CELLS = 1e-6  # margin of the bound's discs (cells): covers the bound's own float rounding
 LEVELS = 5  # reference blocks of 1, 2, 4, 8, 16 cells
 SMALL_BOX = 4  # boxes narrower than this get exact per-translation weights (non-plain ROIs)
-ROT_WEIGHT = 1.0  # split the angles first unless the box blurs more than this × the corners' rotation
 
 
 @njit(cache=True, nogil=True)
@@ -76,6 +75,31 @@ def sparse_moving(mstates, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, oc
                     pocc[count] = p
                     count += 1
     return count
+
+
+@njit(cache=True, nogil=True)
+def moving_points_all(mstates, res_m, ox, oy, cx, cy, n, res, rot, occ_x, occ_y):
+    """:func:`sparse_moving` at every angle of ``rot`` (rows of R(−θ) entries): the occupied lattice
+    points of angle x are ``buf[start[x]:start[x] + cnt[x]]``."""
+    n_ang = rot.shape[0]
+    start = np.empty(n_ang, np.int64)
+    cnt = np.empty(n_ang, np.int64)
+    mark = np.zeros(n * n, np.int32)
+    tmp = np.empty(n * n, np.int32)
+    buf = np.empty(max(1024, 2 * occ_x.size * n_ang), np.int32)
+    used = 0
+    for x in range(n_ang):
+        c = sparse_moving(mstates, res_m, ox, oy, cx, cy, n, res, rot[x, 0], rot[x, 1], rot[x, 2], rot[x, 3],
+                          occ_x, occ_y, mark, x + 1, tmp)
+        if used + c > buf.size:
+            grown = np.empty(max(2 * buf.size, used + c), np.int32)
+            grown[:used] = buf[:used]
+            buf = grown
+        buf[used:used + c] = tmp[:c]
+        start[x] = used
+        cnt[x] = c
+        used += c
+    return start, cnt, buf[:used].copy()
 
 
 @njit(cache=True, nogil=True)
@@ -267,6 +291,40 @@ def region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, 
 
 
 @njit(cache=True, nogil=True)
+def moving_bound(pts, start, cnt, n, rows, cols, ref_sat, r_lo, r_hi, c_lo, c_hi, box):
+    """(agr_hi, dis_lo) from the moving side at one angle over the box ``box`` = (a0, a1, b0, b1)
+    (Lemma 3b): each occupied lattice point (``pts[start:start+cnt]``, indices i·n + j) reads, at the
+    box's translations, reference cells inside the rectangle rows[b0, i]..rows[b1, i] ×
+    cols[a0, j]..cols[a1, j] (the tables are monotone, Lemma 1). It agrees at most once, when that
+    rectangle holds an occupied cell; it disagrees at every translation when the whole rectangle is
+    known and free. ref_sat: summed-area table of the reference's (occupied << 32 | free) indicators
+    over rows r_lo..r_hi, columns c_lo..c_hi (every cell a translation reads)."""
+    a0, a1, b0, b1 = box[0], box[1], box[2], box[3]
+    agr = 0
+    dis = 0
+    for t in range(start, start + cnt):
+        p = pts[t]
+        i = p // n
+        j = p - i * n
+        ra = rows[b0, i]
+        rb = rows[b1, i]
+        ca = cols[a0, j]
+        cb = cols[a1, j]
+        if (ra < 0 and rb < 0) or (ca < 0 and cb < 0):
+            continue  # read nowhere in the box (a −1 at one end only: the part beyond that end is outside)
+        r0 = ra if ra >= 0 else r_lo
+        r1 = rb if rb >= 0 else r_hi
+        c0 = ca if ca >= 0 else c_lo
+        c1 = cb if cb >= 0 else c_hi
+        both = _sat(ref_sat, r0 - r_lo, r1 - r_lo, c0 - c_lo, c1 - c_lo)
+        if (both >> 32) > 0:
+            agr += 1
+        elif ra >= 0 and rb >= 0 and ca >= 0 and cb >= 0 and (both & 0xFFFFFFFF) == (r1 - r0 + 1) * (c1 - c0 + 1):
+            dis += 1
+    return agr, dis
+
+
+@njit(cache=True, nogil=True)
 def _heap_push(hv, hi, size, v, i):
     k = size
     hv[k] = v
@@ -318,7 +376,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
                      slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, init_nodes, init_vals,
-                     occ_x, occ_y, mark, gen):
+                     occ_x, occ_y, mark, gen, ref_sat, pre_start, pre_cnt, pre_buf):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
     ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget, floor).
@@ -375,6 +433,14 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     free_ids = np.empty(cap, np.int64)
     n_free_ids = 0
     child = np.empty((4, 6), np.int64)
+    # per angle, its occupied lattice points for the moving-side bound (Lemma 3b), computed on first use
+    p_start = np.full(n_ang, -1, np.int64)  # in p_buf; pre_start ≥ 0: given in pre_buf
+    p_cnt = np.zeros(n_ang, np.int64)
+    p_buf = np.empty(4096, np.int32)
+    p_used = 0
+    p_tmp = np.empty(n * n, np.int32)
+    r_lo, c_lo = axes_r[3], axes_c[3]
+    r_hi, c_hi = r_lo + ref_sat.shape[0] - 2, c_lo + ref_sat.shape[1] - 2
     complete = True
     while size > 0:
         if budget > 0 and n_bounds >= budget:
@@ -425,9 +491,13 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                                             need_ff)
             else:
                 if slot_angle[slot] != lo:
-                    gen[0] += 1
-                    no = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
-                                       rot[lo, 2], rot[lo, 3], occ_x, occ_y, mark, gen[0], slots_pocc[slot])
+                    if pre_start[lo] >= 0:  # given: a copy
+                        no = pre_cnt[lo]
+                        slots_pocc[slot, :no] = pre_buf[pre_start[lo]:pre_start[lo] + no]
+                    else:
+                        gen[0] += 1
+                        no = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[lo, 0], rot[lo, 1],
+                                           rot[lo, 2], rot[lo, 3], occ_x, occ_y, mark, gen[0], slots_pocc[slot])
                     slot_angle[slot] = lo
                     slot_counts[slot, 0] = no
                     slot_counts[slot, 1] = 0
@@ -446,12 +516,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 inc[3], inc[4], inc[5] = lo, a0 - k, b0 - k
                 inc[6], inc[7], inc[8] = agr, dis, ff
             continue
-        # split: the angles while the rotation moves the ROI's corners more than the box, else the box
-        span = (angles[hi] - angles[lo]) / 2.0
-        rot_cells = 2.0 * math.sin(math.radians(span) / 2.0) * rmax / res * ROT_WEIGHT
-        box_cells = max(a1 - a0, b1 - b0) / 2.0
+        # split: the angles first (one angle's moving side bounds its box tightly, Lemma 3b), then the box
         nc = 0
-        if hi > lo and (rot_cells >= box_cells or (a0 == a1 and b0 == b1)):
+        if hi > lo:
             mid = (lo + hi) // 2
             for (x0, x1) in ((lo, mid), (mid + 1, hi)):
                 child[nc, 0], child[nc, 1] = x0, x1
@@ -481,6 +548,28 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 level += 1
             agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
                                           mh, mw, th_mid, half_rad, box, level)
+            if clo == chi and pre_start[clo] >= 0:  # one angle: the moving side's bound too (Lemma 3b)
+                m_agr, m_dis = moving_bound(pre_buf, pre_start[clo], pre_cnt[clo], n, rows, cols, ref_sat, r_lo,
+                                            r_hi, c_lo, c_hi, box)
+                agr_hi = min(agr_hi, m_agr)
+                dis_lo += m_dis
+            elif clo == chi:
+                if p_start[clo] < 0:
+                    gen[0] += 1
+                    cnt = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[clo, 0], rot[clo, 1],
+                                        rot[clo, 2], rot[clo, 3], occ_x, occ_y, mark, gen[0], p_tmp)
+                    if p_used + cnt > p_buf.size:
+                        grown_p = np.empty(max(2 * p_buf.size, p_used + cnt), np.int32)
+                        grown_p[:p_used] = p_buf[:p_used]
+                        p_buf = grown_p
+                    p_buf[p_used:p_used + cnt] = p_tmp[:cnt]
+                    p_start[clo] = p_used
+                    p_cnt[clo] = cnt
+                    p_used += cnt
+                m_agr, m_dis = moving_bound(p_buf, p_start[clo], p_cnt[clo], n, rows, cols, ref_sat, r_lo, r_hi,
+                                            c_lo, c_hi, box)
+                agr_hi = min(agr_hi, m_agr)
+                dis_lo += m_dis
             n_bounds += 1
             sx_lo = 1 << 40
             sx_hi = -1

@@ -127,8 +127,10 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
         ru_deg, ru_score = al.runner_up
     else:  # the runner-up, looked for only where it could be a rival; exact unless the rivals are so many
         # and so close that RIVAL_BUDGET regions do not settle them (then the best found: a real placement)
+        # the fast search's profile bounds every angle's values (Lemma 5): the search starts from it
+        env = al.profile if al.evidence.get("profile") == "upper_envelope" else None
         ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK,
-                                           budget=RIVAL_BUDGET)
+                                           budget=RIVAL_BUDGET, envelope=env)
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
     ev = ev if ev is not None else searcher_for(problem)

@@ -301,17 +301,29 @@ def fast_search(problem) -> Alignment:
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
-def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budget: int = 0) -> tuple[float, float]:
+def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budget: int = 0,
+                    envelope=None) -> tuple[float, float]:
     """The reference's runner-up exactly: over the coarse angles at least 10° from ``theta_deg``, the
     first maximum (smallest angle) of the best value over the window (NaNs when no angle is that far).
     With ``floor``, only a runner-up scoring at least ``floor`` is looked for (NaNs when there is none):
     regions bounded below it are dropped at once. With a ``budget`` of bounded regions the answer is
-    the best exact value found within it (exact when the search completed; a real placement always)."""
+    the best exact value found within it (exact when the search completed; a real placement always).
+    ``envelope``: per coarse angle an upper bound of its values over the window (the fast search's
+    profile, Lemma 5): the search starts from one region per angle with that bound, so angles whose
+    bound is below ``floor`` are never searched."""
     far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
     if not far.any():
         return float("nan"), float("nan")
     inc = None if floor is None else np.array([np.nextafter(floor, -np.inf), -1, -1, -1, 0, 0, 0, 0, 0])
-    inc, _ = searcher_for(problem).run(COARSE, mode=1, amask=far, inc=inc, budget=budget)
+    s = searcher_for(problem)
+    init = None
+    if envelope is not None:
+        side = s.p.side
+        nodes = np.zeros((COARSE.size, 6), np.int64)
+        nodes[:, 0] = nodes[:, 1] = np.arange(COARSE.size)
+        nodes[:, 3] = nodes[:, 5] = side - 1
+        init = (nodes, np.asarray(envelope, np.float64))
+    inc, _ = s.run(COARSE, mode=1, amask=far, inc=inc, budget=budget, init=init)
     if inc[3] < 0:
         return float("nan"), float("nan")
     return float(inc[3]), float(inc[0])

@@ -146,9 +146,10 @@ class Searcher:
 
     def _points(self, angles: np.ndarray):
         """The moving ROI's occupied lattice points at every angle of ``angles`` (start, count, buffer) for
-        the coarse angles, kept per moving map (every search of a cycle with this map moving reads them);
-        for other angles, or when they would be large, none (the kernel computes the angles it needs)."""
-        if not (angles.shape == COARSE.shape and np.array_equal(angles, COARSE)) or \
+        the coarse angles of a windowed search, kept per moving map (every search of a cycle with this map
+        moving reads them; a windowed search bounds nearly every angle alone); rotation only, for other
+        angles, or when they would be large, none (the kernel computes the few angles it needs)."""
+        if self.p.k == 0 or not (angles.shape == COARSE.shape and np.array_equal(angles, COARSE)) or \
                 self.p.occ_x.size * 2 * COARSE.size * 4 > POINTS_BYTES:
             return np.full(angles.size, -1, np.int64), np.zeros(angles.size, np.int64), _NO_POINTS
         p = self.p
@@ -281,7 +282,9 @@ def fast_search(problem) -> Alignment:
     inc, env = s.run(COARSE, init=s.initial_regions())
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
-    value, counts = s.exact(float(angles[kf]), *tc)
+    th_f = float(angles[kf])
+    value = float(s.values(th_f, [tc])[0])  # the counts (free/free: a dense pass) on first access
+    counts = lambda: searcher_for(problem).exact(th_f, *tc)[1]  # noqa: E731
     # the fine scores: exact wherever a bound reaches the best (a plateau of equal scores is exact),
     # elsewhere bounds below it (the sub-cell refinement reads only the plateau)
     fine_vals = fine_env.copy()

@@ -548,7 +548,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 level += 1
             agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
                                           mh, mw, th_mid, half_rad, box, level)
-            if clo == chi and pre_start[clo] >= 0:  # one angle: the moving side's bound too (Lemma 3b)
+            if k == 0:  # rotation only: one translation, the reference side alone
+                pass
+            elif clo == chi and pre_start[clo] >= 0:  # one angle: the moving side's bound too (Lemma 3b)
                 m_agr, m_dis = moving_bound(pre_buf, pre_start[clo], pre_cnt[clo], n, rows, cols, ref_sat, r_lo,
                                             r_hi, c_lo, c_hi, box)
                 agr_hi = min(agr_hi, m_agr)

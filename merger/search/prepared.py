@@ -131,7 +131,8 @@ class Prepared:
             self.qr, self.qc = qr.astype(np.int64) + rlo, qc.astype(np.int64) + clo
         self.blk, self.lvl_start = self._blocks()
         # the readable reference cells' (occupied << 32 | free) summed-area table (the moving side's bound)
-        box = self.ref[rlo:rhi + 1, clo:chi + 1] if not self.empty_ref else np.zeros((1, 1), np.int8)
+        # (rotation only: no box of translations, never read)
+        box = self.ref[rlo:rhi + 1, clo:chi + 1] if self.k > 0 and not self.empty_ref else np.zeros((1, 1), np.int8)
         self.ref_sat = _sat((box == OCCUPIED_S).astype(np.int64) << 32 | (box == FREE_S).astype(np.int64))
         # per translation, how many lattice rows (columns) read each occupied cell: exact weights of small
         # boxes when the ROI is not a plain block (Lemma 3)

@@ -6,7 +6,8 @@
    the straightforward fast way (one ``cv2.warpAffine`` nearest-neighbour per angle, numpy counts).
 2. Rotation × translation, ROI 8 m, W 0.5 m (441 translations), centers 0.25 m off, generic centers and
    centers on cell centres and corners: ``fast`` against the compiled exhaustive search
-   (:func:`merger.search.reference_search`: the same compiled counts at every angle and translation).
+   (:func:`merger.search.reference_search`: the same compiled counts at every angle and translation);
+   cold (every cache cleared) and warm (the moving map's own arrays kept, as in a merge cycle).
 Answers are checked against the baseline's in every run; the figures are medians (ms) after a warm-up
 call (numba compiles on first use; the on-disk cache makes later processes start warm).
 """
@@ -100,12 +101,16 @@ def timed(fn, *args):
     return (time.perf_counter() - t) * 1e3, out
 
 
-def median_ms(fn, problem_factory, reps: int):
+def median_ms(fn, problem_factory, reps: int, warm: bool = False):
+    """Median wall time of ``fn`` on a new problem object per repetition: cold (every cache cleared, as a
+    one-off ``merger align``), or ``warm`` (the moving map's own arrays kept, as in a merge cycle where a
+    map is the moving map of several searches)."""
     out = None
     times = []
     for _ in range(reps):
         p = problem_factory()
-        clear_all()
+        if not warm:
+            clear_all()
         ms, out = timed(fn, p)
         times.append(ms)
     return statistics.median(times), out
@@ -139,14 +144,17 @@ def windowed(reps: int, seeds: int) -> None:
                 return RotationProblem(g, c.moving, tuple(cr), c.center_moving, 8.0, "similarity", 0.5)
             fast_search(make())
             f_ms, f = median_ms(fast_search, make, reps)
+            w_ms, _ = median_ms(fast_search, make, reps, warm=True)
             ref_ms, r = median_ms(reference_search, make, 1) if seed < 2 else (float("nan"), f)
             same = (f.theta_deg, f.cells, f.score) == (r.theta_deg, r.cells, r.score)
-            rows.append((mode, f_ms, ref_ms))
-            print(f"   seed {seed} {mode:7s}: fast {f_ms:7.1f}  exhaustive {ref_ms:8.1f}  "
+            rows.append((mode, f_ms, ref_ms, w_ms))
+            print(f"   seed {seed} {mode:7s}: fast {f_ms:7.1f} (warm {w_ms:5.1f})  exhaustive {ref_ms:8.1f}  "
                   f"same answer {same}  θ {f.theta_deg:.1f}° t {f.cells}")
     for mode in ("generic", "centre", "corner"):
         ms = [r[1] for r in rows if r[0] == mode]
-        print(f"   {mode:7s}: fast median {statistics.median(ms):.1f} ms over {len(ms)} problems")
+        wm = [r[3] for r in rows if r[0] == mode]
+        print(f"   {mode:7s}: fast median {statistics.median(ms):.1f} ms cold, {statistics.median(wm):.1f} ms warm "
+              f"(the moving map's arrays cached) over {len(ms)} problems")
     gen = [r for r in rows if r[0] == "generic" and r[2] == r[2]]
     if gen:
         print(f"   ratio exhaustive / fast (generic): {statistics.median([r[2] / r[1] for r in gen]):.1f}x")

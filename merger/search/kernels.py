@@ -539,6 +539,23 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         for c in range(nc):
             clo, chi = child[c, 0], child[c, 1]
             box[0], box[1], box[2], box[3] = child[c, 2], child[c, 3], child[c, 4], child[c, 5]
+            # a region without an allowed angle or translation holds nothing to find: not bounded
+            any_a = False
+            for x in range(clo, chi + 1):
+                if amask[x]:
+                    any_a = True
+                    break
+            any_t = False
+            if any_a:
+                for b in range(box[2], box[3] + 1):
+                    for a in range(box[0], box[1] + 1):
+                        if tmask[b * side + a]:
+                            any_t = True
+                            break
+                    if any_t:
+                        break
+            if not any_t:
+                continue
             th_mid = (angles[clo] + angles[chi]) / 2.0
             half_rad = math.radians((angles[chi] - angles[clo]) / 2.0)
             # the block level: blocks no wider than the region's own blur

@@ -155,6 +155,109 @@ def aphill_cases(data: Path, rois, errors):
     return out
 
 
+def _raster(xy: np.ndarray, lo: np.ndarray, cell: float, shape) -> np.ndarray:
+    img = np.zeros(shape, np.float32)
+    ij = np.floor((xy - lo) / cell).astype(np.int64)
+    ok = (ij[:, 0] >= 0) & (ij[:, 0] < shape[1]) & (ij[:, 1] >= 0) & (ij[:, 1] < shape[0])
+    np.add.at(img, (ij[ok, 1], ij[ok, 0]), 1.0)
+    return img
+
+
+def estimate_truth(ref: OccupancyGrid, mov: OccupancyGrid, cell: float = 0.2, icp_iters: int = 40):
+    """An independent estimate of x_ref = R(θ) x_mov + t for maps without a published truth (no common
+    center used): every whole degree, the translation maximising the moving map's occupied points on the
+    reference's occupied cells minus those on its free cells (both at ``cell`` metres, occupied dilated
+    by one coarse cell), by FFT cross-correlation; the best is refined by point-to-point ICP on the
+    occupied cells (nearest occupied reference cell within 0.3 m, closed-form rigid fit). Returns
+    (θ°, (tx, ty), inlier RMS m, inlier fraction) — a fit, named as such in the output, not a truth."""
+    a, b = occupied_xy(ref), occupied_xy(mov)
+    lo = np.array(ref.origin, np.float64)
+    shape = (int(math.ceil(ref.height * ref.resolution / cell)) + 1, int(math.ceil(ref.width * ref.resolution / cell)) + 1)
+    occ = cv2.dilate((_raster(a, lo, cell, shape) > 0).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
+    fr = ref.states == FREE_S
+    r, c = np.nonzero(fr)
+    free_xy = np.stack([ref.origin[0] + (c + 0.5) * ref.resolution, ref.origin[1] + (r + 0.5) * ref.resolution], 1)
+    free = (_raster(free_xy, lo, cell, shape) > 0).astype(np.float32) * (occ == 0)
+    target = occ - free
+    bm = b - b.mean(0)
+    ph, pw = 2 * shape[0], 2 * shape[1]
+    ft = np.fft.rfft2(target, (ph, pw))
+    best = (-np.inf, 0.0, np.zeros(2))
+    for th in range(360):
+        q = bm @ rotation(float(th)).T
+        qlo = q.min(0)
+        img = _raster(q, qlo, cell, (int((q[:, 1].max() - qlo[1]) / cell) + 2, int((q[:, 0].max() - qlo[0]) / cell) + 2))
+        if img.shape[0] > ph or img.shape[1] > pw:
+            continue
+        corr = np.fft.irfft2(ft * np.conj(np.fft.rfft2(img, (ph, pw))), (ph, pw))
+        k = int(np.argmax(corr))
+        dy, dx = divmod(k, pw)
+        dy = dy - ph if dy > ph // 2 else dy
+        dx = dx - pw if dx > pw // 2 else dx
+        if corr.flat[k] > best[0]:
+            # the moving image's pixel (0, 0) lands on target pixel (dy, dx): x_ref = q + lo + d·cell − qlo
+            best = (float(corr.flat[k]), float(th), lo + np.array([dx, dy]) * cell - qlo)
+    _, th, t = best
+    t = t - rotation(th) @ b.mean(0)  # applied to b itself (not centred)
+    # ICP on the full-resolution occupied cells
+    dist, lab = cv2.distanceTransformWithLabels(np.where(ref.states == OCCUPIED_S, 0, 255).astype(np.uint8),
+                                                cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
+    zr, zc = np.nonzero(ref.states == OCCUPIED_S)
+    lab_xy = np.zeros((lab.max() + 1, 2))
+    lab_xy[lab[zr, zc]] = np.stack([ref.origin[0] + (zc + 0.5) * ref.resolution,
+                                    ref.origin[1] + (zr + 0.5) * ref.resolution], 1)
+    rms, frac = float("nan"), 0.0
+    for _ in range(icp_iters):
+        p = b @ rotation(th).T + t
+        cc = np.floor((p[:, 0] - ref.origin[0]) / ref.resolution).astype(np.int64)
+        rr = np.floor((p[:, 1] - ref.origin[1]) / ref.resolution).astype(np.int64)
+        ok = (rr >= 0) & (rr < ref.height) & (cc >= 0) & (cc < ref.width)
+        ok[ok] &= dist[rr[ok], cc[ok]] * ref.resolution <= 0.3
+        if ok.sum() < 10:
+            break
+        src, dst = b[ok], lab_xy[lab[rr[ok], cc[ok]]]
+        ms, md = src.mean(0), dst.mean(0)
+        u, _, vt = np.linalg.svd((src - ms).T @ (dst - md))
+        rot = (u @ vt).T
+        if np.linalg.det(rot) < 0:
+            vt[-1] *= -1
+            rot = (u @ vt).T
+        th = math.degrees(math.atan2(rot[1, 0], rot[0, 0])) % 360.0
+        t = md - rotation(th) @ ms
+        rms = float(np.sqrt(((src @ rotation(th).T + t - dst) ** 2).sum(1).mean()))
+        frac = float(ok.mean())
+    return th, (float(t[0]), float(t[1])), rms, frac
+
+
+def fitted_cases(data: Path, rois, errors, pairs, label: str, tol=(THETA_TOL_DEG, CENTER_TOL_M)):
+    """Cases of map pairs without a published truth, scored against :func:`estimate_truth` (named
+    "fit" in the output): ``pairs`` = (name, reference YAML, moving YAML)."""
+    out = []
+    for k, (name, ref_path, mov_path) in enumerate(pairs):
+        th, t, rms, frac = estimate_truth(grid(ref_path), grid(mov_path))
+        print(f"{label} {name}: fitted θ {th:.2f}°, t ({t[0]:+.2f}, {t[1]:+.2f}) m, ICP RMS {rms:.3f} m on "
+              f"{100 * frac:.0f}% of the moving map's occupied cells", flush=True)
+        for roi in rois:
+            for err in errors:
+                c = pair_case(f"{label} {name}", ref_path, mov_path, th, t, roi, err, 9000 + 1000 * k + int(100 * err),
+                              tol)
+                if c is not None:
+                    out.append(c)
+    return out
+
+
+def ucmerced_cases(data: Path, rois, errors):
+    d = data / "carpin-ucmerced"
+    pairs = [("longrun 7->6", str(d / "ucm_longrun6.yaml"), str(d / "ucm_longrun7.yaml")),
+             ("longcorridor 2->1", str(d / "ucm_longcorridor1.yaml"), str(d / "ucm_longcorridor2.yaml"))]
+    return fitted_cases(data, rois, errors, pairs, "ucmerced")
+
+
+def demo_cases(data: Path, rois, errors):
+    d = data / "sunil-demo"
+    return fitted_cases(data, rois, errors, [("2->1", str(d / "demo_1.yaml"), str(d / "demo_2.yaml"))], "demo")
+
+
 def correct(case: Case, theta: float, t) -> bool | None:
     if case.truth is None:
         return None
@@ -300,7 +403,7 @@ def aphill_team(data: Path, roi: float, verification: str) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DATA)
-    ap.add_argument("--sets", default="halmstad,aphill")
+    ap.add_argument("--sets", default="halmstad,aphill,ucmerced,demo")
     ap.add_argument("--roi", default="8,16")
     ap.add_argument("--errors", default="0,0.25,0.5")
     ap.add_argument("--probes", action="store_true")
@@ -311,7 +414,8 @@ def main(argv=None) -> int:
     errors = [float(v) for v in args.errors.split(",")]
     cases = []
     for s in args.sets.split(","):
-        cases += {"halmstad": halmstad_cases, "aphill": aphill_cases}[s](args.data, rois, errors)
+        cases += {"halmstad": halmstad_cases, "aphill": aphill_cases, "ucmerced": ucmerced_cases,
+                  "demo": demo_cases}[s](args.data, rois, errors)
     if args.limit:
         cases = cases[:args.limit]
     rows = []

@@ -35,14 +35,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from circsim.config.scenario import load_scenario  # noqa: E402
 from circsim.events import Observer  # noqa: E402
-from circsim.scenario import load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 
 class _MergeWall(Observer):
     """The wall time the merge cycles took in this process (``cycle_ms`` is their cost: wall time plus the
-    computing time of the results a robot took from the run's shared memo, merger.memo)."""
+    computing time of the results a robot took from the run's shared memo, merger.team.memo)."""
 
     def __init__(self) -> None:
         self.ms = 0.0
@@ -112,7 +112,7 @@ def main(argv=None) -> int:
           + f"   false merges {res.false_merges}")
 
     if not args.no_record:
-        from circsim.record import RerunRecorder
+        from circsim.record.rerun import RerunRecorder
 
         with tempfile.TemporaryDirectory() as d:
             path = Path(d) / "bench.rrd"

@@ -31,7 +31,7 @@ class _Parser(argparse.ArgumentParser):
 
 def resolve_scenario(arg: str) -> Path:
     """A scenario file path, or the name of a bundled scenario (``scene1``)."""
-    from .scenario import bundled_scenarios
+    from .config.scenario import bundled_scenarios
 
     p = Path(arg)
     if p.exists():
@@ -44,7 +44,7 @@ def resolve_scenario(arg: str) -> Path:
 
 def load_with_overrides(arg: str, seed: int | None, sets: list[str]):
     """The scenario ``arg`` (file or bundled name) with ``--set`` assignments and ``--seed`` applied."""
-    from .scenario import load_scenario
+    from .config.scenario import load_scenario
 
     sc = load_scenario(resolve_scenario(arg))
     assignments = list(sets or [])
@@ -95,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def extra_commands():
     """Experiment commands that live in their own modules (each module adds its subparser)."""
-    from . import experiments_cli
+    from .experiments import cli as experiments_cli
 
     return experiments_cli.REGISTER
 
@@ -181,9 +181,9 @@ def _writable(path: Path, what: str) -> None:
 def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
     """Before the run: no output may be the scenario file, another output (``--rrd X --json X``, a
     ``--json`` inside ``--save-maps`` named like a robot's map), a folder, a link or a special file."""
-    from merger.mapio import CENTERS_FILE, check_outputs, map_paths
+    from merger.io.mapio import CENTERS_FILE, check_outputs, map_paths
 
-    from .savemaps import file_stem
+    from .record.savemaps import file_stem
 
     outputs = []
     if rrd:
@@ -199,7 +199,7 @@ def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
 
 
 def cmd_run(args) -> int:
-    from merger.mapio import MapFileError, ensure_output_dir, write_files
+    from merger.io.mapio import MapFileError, ensure_output_dir, write_files
 
     from .sim import Simulation
 
@@ -218,14 +218,14 @@ def cmd_run(args) -> int:
     if args.save_maps:
         ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
-    from .savemaps import MapSaver
+    from .record.savemaps import MapSaver
 
     saver = MapSaver() if args.save_maps else None
     if saver:
         observers.append(saver)
     recorder = None
     if rrd or args.spawn:
-        from .record import RerunRecorder
+        from .record.rerun import RerunRecorder
 
         recorder = RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn, scan_log_hz=sc.output.scan_log_hz,
                                  merged_log_period_s=sc.output.merged_log_period_s)
@@ -264,7 +264,7 @@ def cmd_run(args) -> int:
             print(f"circsim: error: --save-maps: {e}; the run's figures are above", file=sys.stderr)
             failed = True
     if json_out:
-        from . import jsonout
+        from .record import jsonout
 
         try:
             write_files({json_out: jsonout.dumps(res.to_dict(), indent=2).encode()})  # 8.6, not 8.600000000000001
@@ -283,10 +283,10 @@ def cmd_run(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
-    from .scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
+    from .config.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
 
     if args.reference:
-        from .scenario_doc import scenario_reference
+        from .config.reference_doc import scenario_reference
 
         print(scenario_reference(), end="")
         return 0
@@ -310,7 +310,7 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from .record import view
+    from .record.rerun import view
 
     begin_work()
     return view(args.rrd, web=args.web)
@@ -388,7 +388,7 @@ def _main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
         return 1
     except Exception as e:
-        from .scenario import ScenarioError
+        from .config.scenario import ScenarioError
 
         if isinstance(e, UsageError | ScenarioError | FileNotFoundError | ValueError):
             print(f"circsim: error: {e}", file=sys.stderr)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import align
-from .mapio import (
+from .io.mapio import (
     CENTERS_FILE,
     MAX_MAP_CELLS,
     MAX_MAP_SIDE,
@@ -32,11 +32,11 @@ from .mapio import (
     overlay_png,
     write_files,
 )
+from .measures import MEASURES
 from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
-from .similarity import MEASURES
-from .team import MapInput, MergeParams, merge_team
+from .team.orders import MapInput, MergeParams, merge_team
+from .team.verify import no_evidence, verify, verify_contrast
 from .transform import canvas, paste, rotation, warp_grid
-from .verify import no_evidence, verify, verify_contrast
 
 MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
 MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
@@ -352,7 +352,7 @@ def check_map_centers(paths, grids, centers, roi_m: float) -> None:
 def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],
                roi_m: float) -> list[MapInput]:
     """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot."""
-    from .bagio import read_bag_maps, topic_names
+    from .io.bagio import read_bag_maps, topic_names
 
     if maps:
         raise UsageError("--bag: give the maps either as files or as --bag with --topics, not both")
@@ -418,8 +418,8 @@ def report_merge(res, as_json: bool) -> None:
 def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
     """The merged map (OUT.yaml/.pgm) and its overlay (OUT_overlay.png) as {path: bytes}; none when no order
     passed verification and ``force`` is off."""
-    from .superpose import fuse
-    from .team import fused_layers
+    from .team.orders import fused_layers
+    from .team.superpose import fuse
 
     if res.accepted:
         merged, layers = res.merged, [res.layers[m.name] for m in maps]

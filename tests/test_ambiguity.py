@@ -8,17 +8,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from merger.ambiguity import verdict
 from merger.search import angle_diff_deg
 from merger.synthetic import arc_viewpoints, partial_view, room_scene, window_case
-from merger.team import MapInput, MergeParams, Warps, merge_team
-from merger.tree import merge_tree, pair_result
+from merger.team.ambiguity import verdict
+from merger.team.orders import MapInput, MergeParams, Warps, merge_team
+from merger.team.tree import merge_tree, pair_result
 
 P = MergeParams(roi_m=8.0, window_m=0.5)  # margin 0.05 (the default with a window)
 
 
 # The reference map's name comes first: the strategies search a pair with that map as the reference
-# (merger.team.merge_orders ranks maps by name; merger.tree the same), and ambiguity is a property of
+# (merger.team.orders.merge_orders ranks maps by name; merger.team.tree the same), and ambiguity is a property of
 # the search in that direction.
 def case_maps(c, names=("Auckland", "Lyon")):
     return [MapInput(names[0], c.ref, c.center_ref), MapInput(names[1], c.moving, c.center_moving)]
@@ -131,12 +131,12 @@ def test_verdict_needs_the_margin_either_way():
 def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
     """A cycle's ambiguous pair is a text event of the merging robot naming both angles (logged once while
     it is unchanged), read back from the .rrd."""
-    from circsim import record
+    from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.events import MergeCycle
-    from circsim.motion import trajectories
-    from circsim.record import RerunRecorder, read_recording
-    from circsim.scenario import bundled_scenarios, load_scenario
-    from circsim.world import World
+    from circsim.record.rerun import RerunRecorder, read_recording
+    from circsim.record.rerun import rerun as record
+    from circsim.world.motion import trajectories
+    from circsim.world.world import World
 
     sc = load_scenario(bundled_scenarios()["scene1"])
     names = list(sc.robots.names)
@@ -183,10 +183,10 @@ def test_a_rival_at_the_same_angle_but_another_translation_is_weighed_by_whole_m
     """Two equally good translations 0.35 m apart at the same angle (the angle rival cannot see them): the
     search returns the one nearer the given center, :func:`shift_rival` the other, exactly; resolve() lets
     whole-map ν choose — and without a window there is no translation rival."""
-    from merger.ambiguity import resolve, shift_rival
+    from merger.measures import Counts
     from merger.search import RotationProblem, search
-    from merger.similarity import Counts
-    from merger.verify import Verification
+    from merger.team.ambiguity import resolve, shift_rival
+    from merger.team.verify import Verification
 
     ref, mov = _pattern_grids(7)
     prob = RotationProblem(ref, mov, (0.0, 0.0), (0.0, 0.0), 3.0, "similarity", 0.5, False)
@@ -214,8 +214,8 @@ def test_a_rival_at_the_same_angle_but_another_translation_is_weighed_by_whole_m
 
 def test_a_single_copy_has_no_translation_rival():
     """With one copy in the reference, every translation more than 0.2 m away scores far below the best."""
-    from merger.ambiguity import shift_rival
     from merger.search import RotationProblem, search
+    from merger.team.ambiguity import shift_rival
 
     ref, mov = _pattern_grids(0)
     prob = RotationProblem(ref, mov, (0.0, 0.0), (0.0, 0.0), 3.0, "similarity", 0.5, False)

@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from merger.bagio import grid_from_message, read_bag_maps, topic_names
 from merger.cli import main
 from merger.grid import OccupancyGrid
-from merger.mapio import MapFileError
+from merger.io.bagio import grid_from_message, read_bag_maps, topic_names
+from merger.io.mapio import MapFileError
 from merger.search import angle_diff_deg
 
 from .conftest import three_views

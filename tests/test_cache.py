@@ -5,11 +5,11 @@ run must not grow), its answers equal to those computed after :func:`merger.sear
 import numpy as np
 import pytest
 
-from merger.cache import BoundedCache, array_digest
+from merger.caches import BoundedCache, array_digest
 from merger.grid import OccupancyGrid
-from merger.online import MapMessage, TeamMerger
 from merger.search import caches
-from merger.team import MergeParams, merge_team
+from merger.team.online import MapMessage, TeamMerger
+from merger.team.orders import MergeParams, merge_team
 from tests.conftest import three_views
 
 

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from circsim.cli import main
-from circsim.record import rerun_executable
+from circsim.record.rerun import rerun_executable
 from merger.search import angle_diff_deg
 from tests.subproc import sigint_default, wait_for
 
@@ -154,7 +154,7 @@ def test_sigterm_handler_is_restored_after_main(capsys):
 
 
 def test_scenarios_show_prints_every_key_and_loads_back(capsys):
-    from circsim.scenario import bundled_scenarios, load_scenario, scenario_from_dict
+    from circsim.config.scenario import bundled_scenarios, load_scenario, scenario_from_dict
 
     assert main(["scenarios", "--show", "scene1"]) == 0
     text = capsys.readouterr().out
@@ -173,7 +173,7 @@ def test_scenarios_show_prints_every_key_and_loads_back(capsys):
     ("center_error={magnitude_m: 0.2}", ("center_error", "magnitude_m"), 0.2),  # the section itself
 ])
 def test_set_accepts_the_grid_aliases(assignment, path, value):
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
 
     sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides([assignment])
     assert getattr(getattr(sc, path[0]), path[1]) == value

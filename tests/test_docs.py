@@ -40,7 +40,7 @@ def test_every_relative_link_resolves():
 
 
 def test_readme_scenario_template_is_valid():
-    from circsim.scenario import scenario_from_dict
+    from circsim.config.scenario import scenario_from_dict
 
     sc = scenario_from_dict(yaml.safe_load(block(README.read_text(), "<!-- scenario-template -->", "yaml")),
                             source="my-room.yaml")

@@ -1,4 +1,4 @@
-"""merger.evidence: the contrast verification on maps degraded as real maps from independent runs are
+"""merger.team.evidence: the contrast verification on maps degraded as real maps from independent runs are
 (thick walls in one, doubled walls in the other), against the simulator's truth: correct placements
 stand above their rivals, placements 20°–180° off and point-symmetric scenes do not."""
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from merger import MapInput, MergeParams, merge_team
-from merger.evidence import CONTRAST_MIN, contrast
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from merger.search import angle_diff_deg
-from merger.team import Warps, shifted
-from merger.verify import verify_contrast
+from merger.team.evidence import CONTRAST_MIN, contrast
+from merger.team.orders import Warps, shifted
+from merger.team.verify import verify_contrast
 
 from .conftest import three_views
 

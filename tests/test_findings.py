@@ -8,10 +8,10 @@ import math
 
 import pytest
 
-from circsim.offline import OfflineSettings, default_search_method, run_offline
-from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.experiments.offline import OfflineSettings, default_search_method, run_offline
+from circsim.experiments.sweep import HypothesisStats
 from circsim.sim import Simulation
-from circsim.sweep import HypothesisStats
 
 FAST = default_search_method()
 needs_fast = pytest.mark.skipif(FAST != "fast", reason="online runs need the fast rotation search for CI")
@@ -80,7 +80,7 @@ def test_offline_similarity_does_not_need_less_displacement_than_ncc_on_our_benc
     assert r["ncc"].first_correct_phi_deg <= r["similarity"].first_correct_phi_deg
 
 
-# NCC threshold for a 3 m ROI, calibrated like circsim.offline.NCC_SCORE_MIN (above every wrong rotation's
+# NCC threshold for a 3 m ROI, calibrated like circsim.experiments.offline.NCC_SCORE_MIN (above every wrong rotation's
 # score on seeds 100–102 of both scenes): `circsim offline scene1 scene2 --seed 100 --seeds 3 --calibrate
 # --set merger.roi_m=3` → highest wrong-rotation score 0.467 → 0.5.
 NCC_SCORE_MIN_ROI3 = 0.5

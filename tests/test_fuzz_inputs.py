@@ -1,6 +1,6 @@
 """Property-based fuzzing of the user-facing readers (issue 12): generated bad input to the scenario loader,
 ``--set`` parsing and the ROS map reader. Whatever comes in, the only exception that may escape is the
-documented one-line error — :class:`circsim.scenario.ScenarioError` or :class:`merger.mapio.MapFileError` —
+documented one-line error — :class:`circsim.config.scenario.ScenarioError` or :class:`merger.io.mapio.MapFileError` —
 never a traceback of something else. Examples per test are in ``EXAMPLES`` (docs/troubleshooting.md says how many).
 """
 
@@ -15,7 +15,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from circsim.scenario import (
+from circsim.config.scenario import (
     ScenarioError,
     bundled_scenarios,
     load_scenario,
@@ -23,7 +23,7 @@ from circsim.scenario import (
     scenario_to_dict,
 )
 from merger.grid import OccupancyGrid
-from merger.mapio import MapFileError, load_map
+from merger.io.mapio import MapFileError, load_map
 
 EXAMPLES = {"scenario_data": 400, "scenario_text": 200, "set": 400, "map_yaml": 300, "map_image": 200}
 

@@ -1,11 +1,11 @@
-"""Floats in circsim's JSON and CSV outputs are written to 12 significant digits (circsim.jsonout)."""
+"""Floats in circsim's JSON and CSV outputs are written to 12 significant digits (circsim.record.jsonout)."""
 
 import json
 import math
 import re
 
 from circsim.cli import main
-from circsim.jsonout import dumps, rounded
+from circsim.record.jsonout import dumps, rounded
 
 
 def test_rounding_keeps_meaning_and_drops_representation_error():

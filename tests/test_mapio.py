@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
-from merger.mapio import MapFileError, load_map, save_map, save_overlay
+from merger.io.mapio import MapFileError, load_map, save_map, save_overlay
 
 REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
 U, F, O = 0, 1, 2
@@ -94,7 +94,7 @@ def test_overlay_png_colours(tmp_path):
 
 def test_overlay_picture_title_legend_scale_bar(tmp_path):
     """Issue 12: upscaled cells, a title line, each robot's colours in a legend and a 1 m scale bar."""
-    from merger.overlay import THESIS_COLOURS, overlay_picture
+    from merger.io.overlay import THESIS_COLOURS, overlay_picture
 
     states = np.zeros((60, 80), np.uint8)
     states[10:50, 10:70] = F
@@ -157,7 +157,7 @@ def test_written_files_are_readable_by_others_and_leave_no_temporary(tmp_path):
 
 def test_write_files_all_or_none(tmp_path):
     """A file that cannot be written leaves none of the others (and no temporary file) behind."""
-    from merger.mapio import write_files
+    from merger.io.mapio import write_files
 
     (tmp_path / "blocker").write_text("a file where a folder is needed")
     with pytest.raises(MapFileError, match="blocker"):

@@ -1,12 +1,12 @@
-"""merger.memo: results shared by content key, charged at their cost, bounded."""
+"""merger.team.memo: results shared by content key, charged at their cost, bounded."""
 
 import time
 
 import numpy as np
 
 from merger.grid import OCCUPIED_S, OccupancyGrid
-from merger.memo import Memo, grid_key, map_key
-from merger.team import MapInput
+from merger.team.memo import Memo, grid_key, map_key
+from merger.team.orders import MapInput
 
 
 def _grid(seed: int = 0) -> OccupancyGrid:

@@ -12,11 +12,11 @@ import pytest
 
 from merger import load_map
 from merger.cli import build_parser, join_negative_xy, main
-from merger.mapio import save_map
+from merger.io.mapio import save_map
 from merger.search import angle_diff_deg
-from merger.superpose import fuse
 from merger.synthetic import arc_viewpoints, partial_view_of_grid, robot_pose_on_circle, world_to_frame
-from merger.team import MapInput, fused_layers
+from merger.team.orders import MapInput, fused_layers
+from merger.team.superpose import fuse
 from merger.transform import rotation
 
 from .conftest import three_views
@@ -356,7 +356,7 @@ def test_overlay_picture_title_names_the_order_angles_nu_and_verdict(saved, tmp_
     import cv2
 
     from merger.cli import overlay_title
-    from merger.team import MergeParams, merge_team
+    from merger.team.orders import MergeParams, merge_team
 
     d, paths, centers, truth = saved
     maps = [MapInput(p.stem, load_map(p), tuple(map(float, c.split(",")))) for p, c in zip(paths, centers,

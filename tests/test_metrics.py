@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, Observer
 from circsim.metrics import (
     MetricsObserver,
@@ -16,7 +17,6 @@ from circsim.metrics import (
     false_merge_lines,
     judge,
 )
-from circsim.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation, estimated_truth, truth_translation
 
 

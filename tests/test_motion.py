@@ -7,8 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from circsim.motion import CircleTrajectory, OfflineStep, Pose, offline_schedule, offline_steps, trajectories
-from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.world.motion import (
+    CircleTrajectory,
+    OfflineStep,
+    Pose,
+    offline_schedule,
+    offline_steps,
+    trajectories,
+)
 
 C = (0.5, -0.25)
 

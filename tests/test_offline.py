@@ -1,4 +1,4 @@
-"""The offline displacement experiment (circsim.offline) and its CLI."""
+"""The offline displacement experiment (circsim.experiments.offline) and its CLI."""
 
 import json
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from circsim.cli import main
-from circsim.motion import offline_schedule
-from circsim.offline import (
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.experiments.offline import (
     THESIS_PHI_DEG,
     ArcDriftSlam,
     OfflineBench,
@@ -20,11 +20,11 @@ from circsim.offline import (
     run_offline,
     summarize,
 )
-from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.world.motion import offline_schedule
+from merger.measures import Counts
 from merger.search import Alignment
-from merger.similarity import Counts
-from merger.team import OrderResult, TeamMergeResult
-from merger.verify import Verification
+from merger.team.orders import OrderResult, TeamMergeResult
+from merger.team.verify import Verification
 
 FAST = default_search_method()
 

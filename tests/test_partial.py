@@ -3,9 +3,9 @@ teammate correctly placed; ``first_pair_merge_s`` and the count of teammates pla
 
 import pytest
 
+from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, Observer
 from circsim.metrics import MetricsObserver, RobotMetrics, RunResult
-from circsim.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation
 
 
@@ -85,7 +85,7 @@ def test_recording_shows_pair_merges_and_teammates_placed(tmp_path):
     import json
 
     from circsim.cli import main
-    from circsim.record import read_recording
+    from circsim.record.rerun import read_recording
 
     rrd, js = tmp_path / "lossy.rrd", tmp_path / "lossy.json"
     assert main(["run", "scene1", "--set", "duration_s=10", "--set", "network.loss=0.9", "--set",

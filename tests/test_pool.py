@@ -1,15 +1,15 @@
-"""merger.pool: a merge cycle's searches on threads give the cycle computed on one thread, bit for bit."""
+"""merger.team.pool: a merge cycle's searches on threads give the cycle computed on one thread, bit for bit."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from merger.pool import parallel_map
 from merger.search import clear_all
 from merger.synthetic import window_case
-from merger.team import MapInput, MergeParams, merge_team
-from merger.tree import merge_tree
+from merger.team.orders import MapInput, MergeParams, merge_team
+from merger.team.pool import parallel_map
+from merger.team.tree import merge_tree
 
 
 def _maps():

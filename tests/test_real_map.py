@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from merger import load_map
 from merger.cli import main as merger_main
-from merger.mapio import save_map
+from merger.io.mapio import save_map
 from merger.search import RotationProblem, angle_diff_deg, search
 from merger.synthetic import (
     arc_viewpoints,
@@ -28,8 +28,8 @@ from merger.synthetic import (
     widest_free_point,
     world_to_frame,
 )
-from merger.team import MapInput, MergeParams, merge_team
-from merger.verify import verify
+from merger.team.orders import MapInput, MergeParams, merge_team
+from merger.team.verify import verify
 
 REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
 F, O = 1, 2

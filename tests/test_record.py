@@ -14,18 +14,18 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from circsim import record
 from circsim.cli import main
+from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, RobotTick
-from circsim.laser import scan as laser_scan
 from circsim.metrics import RobotMetrics, RunResult, judge_placement
-from circsim.motion import trajectories
-from circsim.record import RerunRecorder, read_recording, rerun_executable, view
-from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.record.rerun import RerunRecorder, read_recording, rerun_executable, view
+from circsim.record.rerun import rerun as record
 from circsim.sim import truth_translation
-from circsim.world import World
-from merger.overlay import overlay_rgb
-from merger.team import MapInput, MergeParams, merge_team
+from circsim.world.laser import scan as laser_scan
+from circsim.world.motion import trajectories
+from circsim.world.world import World
+from merger.io.overlay import overlay_rgb
+from merger.team.orders import MapInput, MergeParams, merge_team
 from tests.subproc import sigint_default, wait_for
 
 from .conftest import three_views
@@ -490,7 +490,7 @@ def test_cli_view_of_a_missing_file_is_a_user_error(tmp_path, capsys):
 
 def test_view_web_serves_on_localhost_until_ctrl_c(fabricated):
     web, grpc = _free_port(), _free_port()
-    code = (f"import sys; from circsim.record import view; "
+    code = (f"import sys; from circsim.record.rerun import view; "
             f"sys.exit(view({str(fabricated.path)!r}, web=True, web_port={web}, grpc_port={grpc}))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             text=True, preexec_fn=sigint_default)

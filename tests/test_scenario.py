@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from circsim.scenario import (
+from circsim.config.scenario import (
     Box,
     Chair,
     OverturnedChair,

@@ -3,8 +3,8 @@
 from pathlib import Path
 
 from circsim.cli import main
-from circsim.scenario import _TOP
-from circsim.scenario_doc import scenario_reference
+from circsim.config.reference_doc import scenario_reference
+from circsim.config.scenario import _TOP
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "scenario-reference.md"
 
@@ -31,8 +31,8 @@ def test_every_default_in_the_reference_is_the_loaders():
     import json
     import re
 
-    from circsim.scenario import scenario_from_dict, scenario_to_dict
-    from circsim.scenario_doc import DERIVED_DEFAULTS
+    from circsim.config.reference_doc import DERIVED_DEFAULTS
+    from circsim.config.scenario import scenario_from_dict, scenario_to_dict
 
     resolved = scenario_to_dict(scenario_from_dict({}, default_name="x"))
     resolved.update(seed=scenario_from_dict({}, default_name="x").seed)

@@ -9,10 +9,10 @@ import pytest
 
 from circsim.events import MergeCycle
 from circsim.metrics import MetricsObserver, RobotMetrics, RunResult, in_consensus, spread
-from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
-from merger.shared import HypothesisMessage, reframe
-from merger.team import MergeParams, compose
+from merger.team.online import MapMessage, TeamMerger
+from merger.team.orders import MergeParams, compose
+from merger.team.shared import HypothesisMessage, reframe
 
 from .conftest import three_views
 
@@ -181,9 +181,9 @@ def test_sharing_end_to_end_on_scene1(tmp_path):
     merges of the same first maps already agree); the maps travel exactly as without sharing (the
     hypotheses have their own random stream); the run is deterministic; the recording has the lines."""
     from circsim.cli import main
-    from circsim.jsonout import rounded
-    from circsim.record import read_recording
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.record.jsonout import rounded
+    from circsim.record.rerun import read_recording
     from circsim.sim import Simulation
 
     def run(share):

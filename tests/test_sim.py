@@ -7,8 +7,8 @@ import signal
 import pytest
 
 from circsim.cli import main
+from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import Observer
-from circsim.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation
 
 METRIC_KEYS = {"scenario", "seed", "params", "robots", "false_merges", "rejected_correct", "merge_cycle_ms",
@@ -78,7 +78,7 @@ def test_same_scenario_and_seed_give_identical_metrics():
 
 
 def test_reusing_unchanged_pair_alignments_changes_no_result():
-    """Each robot reuses its own search of two unchanged maps (merger.online.TeamMerger.reuse); every
+    """Each robot reuses its own search of two unchanged maps (merger.team.online.TeamMerger.reuse); every
     merge cycle's evidence is the same as with every search done from scratch."""
     def run(reuse):
         cycles = []
@@ -217,7 +217,7 @@ def test_offline_motion_travels_no_arc():
     ("hall4", ("duration_s=8",)),  # tree
 ])
 def test_sharing_searches_between_robots_changes_no_result(name, sets):
-    """The robots of a run share the pair searches they would all compute (merger.memo): every merge
+    """The robots of a run share the pair searches they would all compute (merger.team.memo): every merge
     cycle's evidence and every metric is the same as with each robot computing alone, the memo does share
     results, and a cycle that took shared results is charged their computing time (its cost ≥ its wall)."""
     def run(share):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from merger.similarity import birk_carpin, count_cells, ncc, similarity_index
+from merger.measures import birk_carpin, count_cells, ncc, similarity_index
 
 U, F, O = 0, 1, 2
 A = np.array([[O, O, F, U],

@@ -9,12 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
-from circsim import scanmatch
-from circsim.laser import LaserConfig, LaserScan, scan
-from circsim.motion import trajectories
-from circsim.scenario import bundled_scenarios, load_scenario
-from circsim.slam import DriftConfig, OdometryConfig, Slam, SlamConfig
-from circsim.world import World
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.slam.models import DriftConfig, OdometryConfig, Slam, SlamConfig, scanmatch
+from circsim.world.laser import LaserConfig, LaserScan, scan
+from circsim.world.motion import trajectories
+from circsim.world.world import World
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 
 EXACT = SlamConfig(model="odometry_only", drift=DriftConfig(0.0, 0.0))

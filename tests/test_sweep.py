@@ -1,13 +1,13 @@
-"""Sweeps: grid parsing and validation, process pool vs dask, resume, tidy rows (circsim.sweep)."""
+"""Sweeps: grid parsing and validation, process pool vs dask, resume, tidy rows (circsim.experiments.sweep)."""
 
 import json
 
 import pytest
 
 from circsim.cli import main
-from circsim.offline import default_search_method
-from circsim.scenario import bundled_scenarios, load_scenario
-from circsim.sweep import (
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.experiments.offline import default_search_method
+from circsim.experiments.sweep import (
     RUNS_JSONL,
     SweepError,
     execute,
@@ -113,7 +113,7 @@ def test_cli_sweep_writes_tables_and_resume_skips_finished_rows(tmp_path, capsys
 
 def test_same_task_same_row():
     t = plan(base(), parse_grid(["network.latency_s=0.5"]), seeds=1)[0]
-    from circsim.sweep import run_one
+    from circsim.experiments.sweep import run_one
 
     assert stable([run_one(t)]) == stable([run_one(t)])
 
@@ -124,7 +124,7 @@ def test_sweep_error_is_a_value_error():
 
 
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
-    from circsim.sweep import ERRORS_JSONL, RunTask
+    from circsim.experiments.sweep import ERRORS_JSONL, RunTask
 
     good = plan(base(), [], seeds=1)[0]
     bad = RunTask({"name": "broken", "robots": {"speed_mps": -1}}, "broken.yaml", (), 0, "broken-key")
@@ -139,7 +139,7 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
 @pytest.mark.parametrize("address", ["tcp://127.0.0.1:9", "notaurl"])
 def test_cli_sweep_unreachable_dask_scheduler_is_a_one_line_error(tmp_path, capsys, monkeypatch, address):
     pytest.importorskip("distributed")
-    import circsim.sweep as sweep
+    import circsim.experiments.sweep as sweep
 
     monkeypatch.setattr(sweep, "DASK_CONNECT_TIMEOUT_S", 1)
     args = ["sweep", "scene1", "--grid", "center_error=0", "--seeds", "1", "--out", str(tmp_path / "sw"),
@@ -266,7 +266,7 @@ def test_pool_workers_exit_when_the_sweep_parent_dies(tmp_path, how):
 def test_sweep_plot_x_axis_is_the_swept_key(tmp_path):
     """Issue 12: sweep.png plots against center error when it is swept, else against the first --grid key
     (numbers at their value, names in order), ticks at the swept values."""
-    from circsim.sweep_plot import _x_position, choose_axes, plot_sweep
+    from circsim.experiments.plots import _x_position, choose_axes, plot_sweep
 
     assert choose_axes(["network.latency_s", "center_error.magnitude_m"]) == ("center_error.magnitude_m",
                                                                               ["network.latency_s"])

@@ -1,9 +1,9 @@
-"""What a sweep shows a person: the summary text table and sweep.png's axes (circsim.sweep, sweep_plot)."""
+"""What a sweep shows a person: the summary text table and sweep.png's axes (circsim.experiments.sweep, sweep_plot)."""
 
 import re
 
-from circsim.sweep import format_summary, parse_grid, summarize
-from circsim.sweep_plot import ANGLE_TICKS, PANELS, sweep_figure
+from circsim.experiments.plots import ANGLE_TICKS, PANELS, sweep_figure
+from circsim.experiments.sweep import format_summary, parse_grid, summarize
 
 
 def rows(errors=(0.0, 0.1), seeds=(1, 2, 3), angle=lambda e, s: 0.3 + 2 * e * s):

@@ -9,8 +9,8 @@ import pytest
 import merger
 from merger.search import angle_diff_deg
 from merger.synthetic import arc_viewpoints, partial_view, room_scene
+from merger.team.verify import verify
 from merger.transform import canvas, paste, warp_grid
-from merger.verify import verify
 
 
 @pytest.fixture(scope="module")

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
-from merger.online import MapMessage, TeamMerger
 from merger.search import angle_diff_deg
-from merger.superpose import fuse, superpose
-from merger.team import MapInput, MergeParams, merge_orders, merge_team
+from merger.team.online import MapMessage, TeamMerger
+from merger.team.orders import MapInput, MergeParams, merge_orders, merge_team
+from merger.team.superpose import fuse, superpose
 
 U, F, O = 0, 1, 2
 
@@ -107,7 +107,7 @@ def _same_result(a, b):
 def test_online_cycles_reuse_the_search_of_an_unchanged_pair_with_the_same_result(monkeypatch):
     """A cycle after one map changed searches 5 of 6 alignments: the pair of the two unchanged maps is
     reused from the previous cycle; every figure equals a cycle computed from scratch."""
-    import merger.team as team
+    import merger.team.orders as team
     from tests.conftest import three_views
 
     _, names, maps, _ = three_views(3)
@@ -148,16 +148,16 @@ def test_merge_team_without_versions_never_reuses(team_views):
 
 
 def _order(order, theta, t, nus):
-    from merger.similarity import Counts
-    from merger.team import OrderResult
-    from merger.verify import Verification
+    from merger.measures import Counts
+    from merger.team.orders import OrderResult
+    from merger.team.verify import Verification
 
     checks = {k: Verification(v, Counts(500, 100), True) for k, v in nus.items()}
     return OrderResult(order, theta, (), checks, True, "", t)
 
 
 def test_ambiguity_rule_rejects_close_rival_placements():
-    from merger.team import MergeParams, _ambiguity
+    from merger.team.orders import MergeParams, _ambiguity
 
     names = ("A", "B", "C")
     good = _order(names, {"A": 0.0, "B": 120.0, "C": 240.0}, {"A": (0, 0), "B": (0.01, 0), "C": (0, 0.02)},

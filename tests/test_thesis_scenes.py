@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from circsim.laser import LaserConfig, LaserScan, apply_sensor_model
-from circsim.scenario import bundled_scenarios, load_scenario
+from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation
-from circsim.slam import DriftConfig, Slam, SlamConfig
+from circsim.slam.models import DriftConfig, Slam, SlamConfig
+from circsim.world.laser import LaserConfig, LaserScan, apply_sensor_model
 
 GMAPPING = SlamConfig(model="odometry_only", drift=DriftConfig(0.0, 0.0), linear_update_m=1.0,
                       angular_update_rad=0.5)

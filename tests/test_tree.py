@@ -1,4 +1,4 @@
-"""Team merging from verified pairs along a maximum spanning tree (merger.tree, strategy "tree")."""
+"""Team merging from verified pairs along a maximum spanning tree (merger.team.tree, strategy "tree")."""
 
 import dataclasses
 import math
@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from merger.online import MapMessage, TeamMerger
+from merger.measures import Counts
 from merger.search import angle_diff_deg
-from merger.similarity import Counts
-from merger.team import MapInput, MergeParams, _pair_key, compose, merge_team
-from merger.tree import PairResult, chain, merge_tree, relative, spanning_tree
-from merger.verify import Verification
+from merger.team.online import MapMessage, TeamMerger
+from merger.team.orders import MapInput, MergeParams, _pair_key, compose, merge_team
+from merger.team.tree import PairResult, chain, merge_tree, relative, spanning_tree
+from merger.team.verify import Verification
 from tests.conftest import three_views
 
 
@@ -30,7 +30,7 @@ def _al(theta, t):
 
 
 def test_relative_and_chain_compose_like_the_orders_placements():
-    """Placing j onto i then i onto 0 agrees with merger.team.compose, and a reversed pair undoes itself."""
+    """Placing j onto i then i onto 0 agrees with merger.team.orders.compose, and a reversed pair undoes itself."""
     th, t = relative(_al(30.0, (0.2, -0.1)), reverse=False)
     back = relative(_al(30.0, (0.2, -0.1)), reverse=True)
     p = chain((th, t), back)  # i → j → i: the identity
@@ -103,7 +103,7 @@ def test_a_false_pair_that_closes_an_inconsistent_loop_is_rejected(views):
 
 
 def test_tree_cycles_search_only_the_pairs_of_a_changed_map(monkeypatch):
-    import merger.tree as tree
+    import merger.team.tree as tree
 
     _, names, maps, _ = three_views(3)
     _, _, later, _ = three_views(3, arc=25.0)
@@ -131,7 +131,7 @@ def test_team_merger_rejects_an_unknown_strategy():
 
 def test_tree_merges_every_robot_of_a_simulated_scene():
     """Scene 2, exact center: the tree merges every robot correctly, without a false merge."""
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
 
     sc = load_scenario(bundled_scenarios()["scene2"]).with_overrides(
@@ -143,7 +143,7 @@ def test_tree_merges_every_robot_of_a_simulated_scene():
 
 def test_hall_of_four_robots_every_robot_places_every_teammate():
     """The bundled 4-robot hall (partial teams, tree): each robot first merges a pair, then the team."""
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
 
     sc = load_scenario(bundled_scenarios()["hall4"]).with_overrides(["duration_s=14", "merger.strategy=tree"])
@@ -157,7 +157,7 @@ def test_hall_of_four_robots_every_robot_places_every_teammate():
 def test_adjust_spreads_a_loop_error_over_the_ring_and_leaves_a_tree_alone():
     """Four maps on a ring, true angles 0/90/180/270°, each chain pair off by +0.5°; the closing pair is
     exact. The tree (by ν) is the chain, whose far end is off by 1.5°; least squares spreads it."""
-    from merger.tree import adjust, compose_tree
+    from merger.team.tree import adjust, compose_tree
 
     def ver(nu):
         return Verification(nu, Counts(1000, 100), True)
@@ -185,8 +185,8 @@ def test_pairs_that_did_not_verify_but_agree_with_the_tree_close_loops_in_the_ad
     1|3 did not verify (too few cells) but their own searches are near the truth. With ``params`` they are
     weaker loops: the far end comes within 1°. A weak pair 10° or more from the tree, one under ν_min/2, and
     an ambiguous one are not used; without ``params`` only verified pairs count (a tree: unchanged)."""
-    from merger.ambiguity import PairAmbiguity
-    from merger.tree import adjust, compose_tree, loop_edges
+    from merger.team.ambiguity import PairAmbiguity
+    from merger.team.tree import adjust, compose_tree, loop_edges
 
     def pair(i, j, theta, nu, passed=True, support=1100):
         v = Verification(nu, Counts(support - 100, 100), passed, "" if passed else "support < min_support")
@@ -223,7 +223,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     within the tolerance (here within 0.9°). The maps are those of the random-walk SLAM the case was found
     with (``slam.model: odometry_only``); with the scan-matching SLAM every robot merges all seven maps
     correctly by 12 s, none by 7 s (``test_the_scan_matching_slams_seven_robots_merge_without_false_merges``)."""
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
 
     base = load_scenario(bundled_scenarios()["hall8"])
@@ -241,7 +241,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
 def test_the_scan_matching_slams_seven_robots_merge_without_false_merges():
     """The same hall with 7 robots and the default scan-matching SLAM: no false merge, all seven robots
     merge all maps correctly within 12 s."""
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
 
     base = load_scenario(bundled_scenarios()["hall8"])
@@ -257,7 +257,7 @@ def test_the_scan_matching_slams_seven_robots_merge_without_false_merges():
 
 def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
     from circsim.cli import main
-    from circsim.record import read_recording
+    from circsim.record.rerun import read_recording
 
     rrd = tmp_path / "hall4.rrd"
     assert main(["run", "hall4", "--set", "duration_s=10", "--set", "merger.method=fast", "--rrd", str(rrd),

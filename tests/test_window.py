@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 import merger
 from merger import load_map
 from merger.grid import OccupancyGrid
+from merger.measures import measure_fn
 from merger.search import (
     MAX_WINDOW_FRACTION,
     RotationProblem,
@@ -37,7 +38,6 @@ from merger.search import (
 from merger.search import (
     exact_runner_up as exact_window_runner_up,
 )
-from merger.similarity import measure_fn
 from merger.synthetic import (
     arc_viewpoints,
     partial_view_of_grid,
@@ -47,9 +47,9 @@ from merger.synthetic import (
     window_case,
     world_to_frame,
 )
-from merger.team import MapInput, MergeParams, merge_team, place_on_frame0
+from merger.team.orders import MapInput, MergeParams, merge_team, place_on_frame0
+from merger.team.verify import verify
 from merger.transform import extract_roi, roi_cells, rotated_roi, rotation
-from merger.verify import verify
 from tests.conftest import three_views
 
 REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"

@@ -9,11 +9,10 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from circsim import laser
-from circsim.laser import LaserConfig, raycast, scan
-from circsim.motion import trajectories
-from circsim.scenario import bundled_scenarios, load_scenario
-from circsim.world import World
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.world.laser import LaserConfig, raycast, scan
+from circsim.world.motion import trajectories
+from circsim.world.world import World, laser
 
 BODY = 0.18
 

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..similarity import Counts, measure_fn
+from ..measures import Counts, measure_fn
 from . import caches
 from .kernels import branch_and_bound, exact_counts, exact_counts_sparse, fill_moving, sparse_moving
 from .lattice import rotation_entries

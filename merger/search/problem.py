@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import OccupancyGrid
-from ..similarity import MEASURES, Counts, Similarity, measure_fn
+from ..measures import MEASURES, Counts, Similarity, measure_fn
 from ..transform import extract_roi, roi_cells, rotated_roi
 
 

@@ -25,13 +25,13 @@ import numpy as np
 import yaml
 
 from merger.cli import MAX_ROI_M, MIN_ROI_CELLS
-from merger.evidence import CONTRAST_MIN, TOLERANCE_M
-from merger.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
+from merger.io.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
 from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
+from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
 
-from .laser import LaserConfig
-from .network import NetworkConfig
-from .slam import SLAM_MODELS, DriftConfig, LogOddsConfig, MatcherConfig, OdometryConfig, SlamConfig
+from ..network import NetworkConfig
+from ..slam.models import SLAM_MODELS, DriftConfig, LogOddsConfig, MatcherConfig, OdometryConfig, SlamConfig
+from ..world.laser import LaserConfig
 from .validate import (
     Invalid,
     bad,
@@ -55,7 +55,7 @@ MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
 MAX_BEAMS = 100_000
 MAX_SPEED_MPS = 2.0  # a robot mapping a room indoors; faster, its scans blur and the laser SLAM is meaningless
 MIN_BODY_RADIUS_M = 0.05  # a robot's body: at least 10 cm across (a 1 µm circle is a typo)
-SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 
 
 class ScenarioError(ValueError):
@@ -136,7 +136,7 @@ class OfflineMotion:
 
 @dataclass(frozen=True)
 class RobotsSpec:
-    """The robots on the circle (see :mod:`circsim.motion` for the heading rules)."""
+    """The robots on the circle (see :mod:`circsim.world.motion` for the heading rules)."""
 
     names: tuple[str, ...] = ("Lyon", "Auckland", "Nevers")
     radius_m: float = 1.75
@@ -187,10 +187,10 @@ class MergerSettings:
         0: the thesis's measure as defined).
     tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
         agree, and the placement's whole-map fit must stand this many times above its best rival
-        (``merger.MergeParams``; :mod:`merger.evidence`).
+        (``merger.MergeParams``; :mod:`merger.team.evidence`).
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
-        own maps and scores a higher Σν there than its own (:mod:`merger.shared`). Off (default): every
+        own maps and scores a higher Σν there than its own (:mod:`merger.team.shared`). Off (default): every
         robot computes alone, as in the thesis.
     """
 

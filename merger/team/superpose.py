@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S
+from ..grid import FREE_S, OCCUPIED_S, UNKNOWN_S
 
 # superposition of states a and b at index 3a + b (codes unknown 0, free 1, occupied 2), for cv2.LUT
 _SUPERPOSE = np.zeros(256, np.uint8)

@@ -3,7 +3,7 @@
 Two ray casters over the same geometry:
 
 * ``method="numpy"`` (default): all beams at once against the world's segments and circles, as
-  returned by :meth:`circsim.world.World.geometry` from the pymunk shapes. The intersection formulas
+  returned by :meth:`circsim.world.world.World.geometry` from the pymunk shapes. The intersection formulas
   are Chipmunk's own (``cpSegmentShapeSegmentQuery``, ``CircleSegmentQuery``), so both casters agree
   to rounding (the tests check 1e-9 m).
 * ``method="pymunk"``: one ``Space.segment_query_first`` per beam with the robot's own

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid import FREE_S, OCCUPIED_S
+from ..grid import FREE_S, OCCUPIED_S
 
 UNKNOWN_RGB = (128, 128, 128)
 THESIS_COLOURS = {  # name: (occupied RGB, free RGB)

@@ -1,7 +1,7 @@
 """The thesis's offline displacement experiment (figures 3.14 and 3.15), on the bench.
 
 Three robots stand on the circle; they are displaced step by step to both sides of their start points
-(0, +1°, −1°, +2°, −2°, … up to ±max_deg, :func:`circsim.motion.offline_steps`) and every robot
+(0, +1°, −1°, +2°, −2°, … up to ±max_deg, :func:`circsim.world.motion.offline_steps`) and every robot
 scans at every pose into its own SLAM. Once a robot has been at both +φ and −φ its map covers the
 arc [−φ, +φ]: that map is saved (in memory) as the map "at φ". For every φ the three maps are merged
 once, in robot 1's frame (the thesis merged the saved maps offline), with each method:
@@ -47,15 +47,15 @@ import numpy as np
 
 from merger.grid import OccupancyGrid
 from merger.search import angle_diff_deg
-from merger.team import MapInput, MergeParams, TeamMergeResult, merge_team
+from merger.team.orders import MapInput, MergeParams, TeamMergeResult, merge_team
 
-from .laser import scan as laser_scan
-from .metrics import judge, judge_placement
-from .motion import offline_schedule, trajectories
-from .scenario import Scenario
-from .sim import truth_translation
-from .slam import Slam
-from .world import World
+from ..config.scenario import Scenario
+from ..metrics import judge, judge_placement
+from ..sim import truth_translation
+from ..slam.models import Slam
+from ..world.laser import scan as laser_scan
+from ..world.motion import offline_schedule, trajectories
+from ..world.world import World
 
 METHODS = ("ncc", "similarity")
 OTHERS = ("lockstep", "start", "absent")

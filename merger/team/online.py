@@ -6,23 +6,23 @@ partial team merges what it has); an accepted hypothesis replaces the kept align
 never discards a good earlier one. A cycle reuses the robot's own earlier search of a pair of maps that
 has not changed since (the searches are deterministic: same result).
 
-With shared hypotheses (:mod:`merger.shared`), the robot broadcasts the alignment it holds
+With shared hypotheses (:mod:`merger.team.shared`), the robot broadcasts the alignment it holds
 (:meth:`TeamMerger.hypothesis`) and weighs a teammate's (:meth:`TeamMerger.consider`): it adopts it
 only when it verifies on the robot's own maps and scores higher there than the alignment it holds.
 
-Two strategies: ``orders`` (the thesis: every merge order, :func:`merger.team.merge_team`) and ``tree``
+Two strategies: ``orders`` (the thesis: every merge order, :func:`merger.team.orders.merge_team`) and ``tree``
 (pairwise alignments kept per map version, the team assembled along a maximum spanning tree of the
-verified pairs, :func:`merger.tree.merge_tree`).
+verified pairs, :func:`merger.team.tree.merge_tree`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .grid import OccupancyGrid
+from ..grid import OccupancyGrid
 from .memo import Memo
+from .orders import MapInput, MergeParams, TeamMergeResult, merge_team
 from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
-from .team import MapInput, MergeParams, TeamMergeResult, merge_team
 from .tree import merge_tree
 
 STRATEGIES = ("auto", "orders", "tree")
@@ -75,7 +75,7 @@ class TeamMerger:
     strategy: str = "auto"
     adopted: int = 0  # received hypotheses adopted
     _pairs: dict = field(default_factory=dict, repr=False)
-    memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.memo)
+    memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.team.memo)
 
     def __post_init__(self) -> None:
         self.team = tuple(self.team)
@@ -125,7 +125,7 @@ class TeamMerger:
         return hypothesis_of(self.current, self.current_stamp if self.current_stamp is not None else 0.0)
 
     def consider(self, msg: HypothesisMessage, now: float | None = None) -> Adoption:
-        """Weigh a teammate's hypothesis (:func:`merger.shared.adopt`); an adopted one becomes the held
+        """Weigh a teammate's hypothesis (:func:`merger.team.shared.adopt`); an adopted one becomes the held
         alignment, as an accepted merge cycle's does."""
         if msg.robot not in self.team or msg.robot == self.self_name:
             raise ValueError(f"hypothesis from {msg.robot!r}: not a teammate of {self.self_name!r} ({self.team})")

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .scenario import Scenario
+    from ..config.scenario import Scenario
 
 HEADINGS = ("center", "tangent")
 

@@ -23,12 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .ambiguity import PairAmbiguity, resolve
-from .evidence import CONTRAST_MIN, TOLERANCE_M
-from .grid import OccupancyGrid
-from .memo import Memo, map_key
-from .pool import parallel_map
-from .search import (
+from ..grid import OccupancyGrid
+from ..search import (
     ROI_MIN_SUPPORT,
     Alignment,
     RotationProblem,
@@ -37,8 +33,12 @@ from .search import (
     search,
     wrap_deg,
 )
+from ..transform import canvas, footprint, overlap, paste, rotation, warp_grid
+from .ambiguity import PairAmbiguity, resolve
+from .evidence import CONTRAST_MIN, TOLERANCE_M
+from .memo import Memo, map_key
+from .pool import parallel_map
 from .superpose import fuse, superpose
-from .transform import canvas, footprint, overlap, paste, rotation, warp_grid
 from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
 VERIFICATIONS = ("whole_map", "roi_score", "contrast")

@@ -3,8 +3,8 @@
 In the thesis every robot computes alone, and robots may hold different global maps. Here a robot may
 broadcast the alignment it holds (:class:`HypothesisMessage`: its placements of every map onto its own
 frame, with the ν it verified). A receiver expresses the placements in its own frame (:func:`reframe`,
-:func:`merger.team.compose`), verifies them on the maps *it* holds with the whole-map rule of
-:mod:`merger.team` (every pair of placed maps: ν ≥ ν_min and support ≥ min_support,
+:func:`merger.team.orders.compose`), verifies them on the maps *it* holds with the whole-map rule of
+:mod:`merger.team.orders` (every pair of placed maps: ν ≥ ν_min and support ≥ min_support,
 :func:`verify_placements`), verifies the alignment it holds on the same maps, and adopts the received one
 only when it passes and its Σν there is higher (:func:`adopt`). Σν over the pairs of placed maps: on the
 same maps it orders hypotheses as their mean ν does, and a hypothesis that verifiably places more maps
@@ -17,9 +17,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from .grid import OccupancyGrid
-from .superpose import fuse
-from .team import (
+from ..grid import OccupancyGrid
+from .orders import (
     MapInput,
     MergeParams,
     OrderResult,
@@ -29,6 +28,7 @@ from .team import (
     compose,
     place_on_frame0,
 )
+from .superpose import fuse
 from .verify import pairwise
 
 
@@ -66,7 +66,7 @@ def reframe(placements: dict[str, Placement], frame: str, base: str) -> dict[str
 def verify_placements(maps: list[MapInput], place: dict[str, Placement], params: MergeParams,
                       warps: Warps | None = None) -> OrderResult:
     """The hypothesis ``place`` (per map name, onto ``maps[0]``'s frame) verified on ``maps`` with the
-    whole-map rule of :mod:`merger.team`: every pair ν ≥ ν_min with support ≥ min_support. Maps that
+    whole-map rule of :mod:`merger.team.orders`: every pair ν ≥ ν_min with support ≥ min_support. Maps that
     ``place`` does not place are left out."""
     sub = [m for m in maps if m.name in place]
     if not sub or sub[0] is not maps[0]:

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import yaml
 
-from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid, states_from_ros
+from ..grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid, states_from_ros
 from .overlay import overlay_picture
 
 PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
@@ -513,7 +513,7 @@ def save_map(grid: OccupancyGrid, path, *, image_suffix: str = ".pgm") -> tuple[
 
 
 def overlay_png(layers: list[OccupancyGrid], names: list[str], *, title: str = "", cell_px: int | None = None) -> bytes:
-    """The thesis-style colour overlay as a PNG for people (:func:`merger.overlay.overlay_picture`: cropped to
+    """The thesis-style colour overlay as a PNG for people (:func:`merger.io.overlay.overlay_picture`: cropped to
     the known cells, 4 px per cell, ``title``, legend of robot colours, 1 m scale bar)."""
     rgb = overlay_picture([g.states for g in layers], names, layers[0].resolution, title=title, cell_px=cell_px)
     ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))

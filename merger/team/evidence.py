@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .grid import OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+from ..grid import OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 
 LOCAL_DEG = 5.0
 LOCAL_M = 0.5

@@ -2,15 +2,15 @@
 
 Every search and every pair verification is a pure function of its maps (content, geometry, center) and
 parameters. The robots of one simulated team hold the same teammates' maps, so they compute the same pair
-searches: with 8 robots, each pair of map versions is searched by all 8 (:mod:`merger.tree`), and in the
-thesis's orders (:mod:`merger.team`) a pair that opens an order is searched by every robot that holds it.
+searches: with 8 robots, each pair of map versions is searched by all 8 (:mod:`merger.team.tree`), and in the
+thesis's orders (:mod:`merger.team.orders`) a pair that opens an order is searched by every robot that holds it.
 A :class:`Memo` computes each once and hands the same result to the others.
 
 It changes no result (the value is the one the caller would compute: the computations are
 deterministic), only the time a simulation takes. So that a robot's reported merge cost stays the cost it
 would pay alone, each entry keeps the wall time its computation took, and a caller that takes a stored
 result is *charged* that time (:attr:`Memo.charged_ms`, read and reset by the merge cycle;
-:attr:`merger.team.TeamMergeResult.cost_ms`).
+:attr:`merger.team.orders.TeamMergeResult.cost_ms`).
 
 Keys are map versions or content digests (:func:`map_key`), never object identities or scans; the memo
 is bounded in entries (an entry may hold grids: an alignment's deferred evidence).
@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Hashable
 
-from .cache import BoundedCache, array_digest
+from ..caches import BoundedCache, array_digest
 
 MEMO_ENTRIES = 256  # a team of 8 holds 28 pairs; a few map versions of each
 
@@ -34,7 +34,7 @@ def grid_key(grid) -> tuple:
 
 
 def map_key(m) -> tuple:
-    """A key of a :class:`merger.team.MapInput`: its owner, its ``version`` when it has one (by contract a
+    """A key of a :class:`merger.team.orders.MapInput`: its owner, its ``version`` when it has one (by contract a
     version identifies the owner's grid: a map message's stamp), else its grid's content; and its center."""
     ident = ("version", m.version) if m.version is not None else grid_key(m.grid)
     return (m.name, ident, (float(m.center[0]), float(m.center[1])))
@@ -49,7 +49,7 @@ class Memo:
         self.charged_ms = 0.0  # time of the stored results handed out since the last reset
         self.computed = 0
         self.shared = 0
-        self._lock = threading.Lock()  # the counters: a cycle's searches run on threads (merger.pool)
+        self._lock = threading.Lock()  # the counters: a cycle's searches run on threads (merger.team.pool)
 
     def __len__(self) -> int:
         return len(self._cache)

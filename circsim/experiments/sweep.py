@@ -42,11 +42,11 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from merger.mapio import load_yaml
+from merger.io.mapio import load_yaml
 
-from . import jsonout
-from .events import Observer
-from .scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
+from ..config.scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
+from ..events import Observer
+from ..record import jsonout
 
 RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV = "runs.jsonl", "runs.csv", "runs.parquet", "summary.csv"
 ERRORS_JSONL = "errors.jsonl"
@@ -156,7 +156,7 @@ def plan(base: Scenario, axes: list[Axis], seeds: int) -> list[RunTask]:
 # --- one run ---------------------------------------------------------------------------------------
 def run_one(task: RunTask) -> dict:
     """Run one task and return its flat row (called in a worker process or a dask worker)."""
-    from .sim import run_scenario
+    from ..sim import run_scenario
 
     sc = task.scenario()
     clear_merger_caches()  # a worker runs many tasks: no cache carried from one run to the next
@@ -311,7 +311,7 @@ class FolderLock:
 def check_sweep_outputs(out: Path) -> None:
     """The files a sweep writes in ``out`` must be regular files or absent (not a FIFO, whose read would
     block, a device or a link): MapFileError naming the file."""
-    from merger.mapio import check_outputs
+    from merger.io.mapio import check_outputs
 
     check_outputs({out / n: "--out" for n in (RUNS_JSONL, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV, SWEEP_JSON,
                                                ERRORS_JSONL, "sweep.png")})
@@ -386,7 +386,7 @@ def prepare_out(out: Path, tasks: list[RunTask], *, resume: bool, overwrite: boo
 
 def write_sweep_identity(out: Path, tasks: list[RunTask]) -> None:
     """``sweep.json``: the base scenario the rows of ``out`` belong to (written with the first row)."""
-    from merger.mapio import write_files
+    from merger.io.mapio import write_files
 
     ident = _sweep_identity(tasks)
     write_files({out / SWEEP_JSON: json.dumps(ident, indent=1, sort_keys=True, default=str).encode()})
@@ -627,7 +627,7 @@ def write_csv(rows: list[dict], path: Path) -> None:
     dicts are JSON; no rows, an empty file. Written atomically (temporary file, then rename)."""
     import io
 
-    from merger.mapio import write_files
+    from merger.io.mapio import write_files
 
     f = io.StringIO(newline="")
     if rows:

@@ -41,13 +41,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..grid import OccupancyGrid
+from ..search import Alignment, angle_diff_deg, search, wrap_deg
+from ..transform import overlap, rotation
 from .ambiguity import PairAmbiguity, resolve
-from .grid import OccupancyGrid
 from .memo import Memo, map_key
-from .pool import parallel_map
-from .search import Alignment, angle_diff_deg, search, wrap_deg
-from .superpose import fuse
-from .team import (
+from .orders import (
     AMBIGUOUS_DEG,
     AMBIGUOUS_M,
     ORIGIN,
@@ -63,7 +62,8 @@ from .team import (
     problem_for,
     shifted,
 )
-from .transform import overlap, rotation
+from .pool import parallel_map
+from .superpose import fuse
 from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 
 

@@ -4,7 +4,7 @@ An alignment is accepted when ω̃ computed on the whole aligned maps is at leas
 support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
 hypothesis is rejected in that case (favouring false negatives over false merges). For maps from
 independent runs (real maps), :func:`verify_contrast` asks instead how far the placement's whole-map
-fit stands above its rivals' (:mod:`merger.evidence`).
+fit stands above its rivals' (:mod:`merger.team.evidence`).
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..grid import OccupancyGrid
+from ..measures import Counts, similarity_index
+from ..transform import overlap
 from .evidence import AGREE_DEG, Contrast, contrast
-from .grid import OccupancyGrid
-from .similarity import Counts, similarity_index
-from .transform import overlap
 
 
 @dataclass(frozen=True)
@@ -25,7 +25,7 @@ class Verification:
     counts: Counts
     passed: bool
     reason: str = ""
-    contrast: Contrast | None = None  # the contrast evidence (verification "contrast", :mod:`merger.evidence`)
+    contrast: Contrast | None = None  # the contrast evidence (verification "contrast", :mod:`merger.team.evidence`)
 
     @property
     def support(self) -> int:
@@ -47,7 +47,7 @@ def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
 
 def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: float, contrast_min: float,
                     min_support: int, label: str = "") -> Verification:
-    """The contrast rule (:mod:`merger.evidence`) for b placed onto a (grids on one lattice, rotations about
+    """The contrast rule (:mod:`merger.team.evidence`) for b placed onto a (grids on one lattice, rotations about
     ``pivot``); ``nu`` and ``counts`` are ω̃ on the overlap, as in :func:`verify`, for the record."""
     s = similarity_index(*overlap(a, b))
     k = contrast(a, b, pivot, tolerance_m)

@@ -10,7 +10,7 @@ window and its fine angle) is within the margin of the best's score. Whole-map e
 (:func:`resolve`): ν of the pair under both hypotheses; the one whose ν exceeds the other's by at
 least the margin is used (it may be the runner-up: the ROI's best is then the false one), and when
 neither does, the pair is not used — the orders strategy refuses an order that searched it, the tree
-drops the edge. The margin is :attr:`merger.team.MergeParams.margin` (0.05 with a window, 0 — the rule
+drops the edge. The margin is :attr:`merger.team.orders.MergeParams.margin` (0.05 with a window, 0 — the rule
 off, the thesis's behaviour — without one), in the same ω̃ units for the ROI scores and for ν.
 """
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .search import (
+from ..search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
     RotationProblem,
@@ -37,7 +37,7 @@ from .search import (
 )
 from .verify import Verification
 
-RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.AMBIGUOUS_M)
+RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.orders.AMBIGUOUS_M)
 PREFILTER_SLACK = 0.05  # the profile's runner-up score can be approximate (the fast search's polar
 # stage): a pair is examined exactly when that score is within margin + this of the best
 RIVAL_BUDGET = 6000  # regions the runner-up search may bound (deterministic: a count, not a time)

@@ -19,7 +19,7 @@ import pymunk
 from .motion import Pose, trajectories
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .scenario import Box, Chair, OverturnedChair, Scenario
+    from ..config.scenario import Box, Chair, OverturnedChair, Scenario
 
 
 @dataclass(frozen=True, eq=False)

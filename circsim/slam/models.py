@@ -10,7 +10,7 @@ Each robot maps in its frame M_i = its pose at start, as gmapping does. Two mode
   holonomic form of ROS amcl's ``omni-corrected`` model (Nav2 amcl's ``OmniMotionModel``), because the
   bench's robots drive sideways round the circle while facing the center (the differential form would
   read that as two ±90° turns per scan and add α1·(π/2)² of yaw variance to each) — then **corrected by matching the scan to the robot's own map so far**
-  (:mod:`circsim.scanmatch`: a correlative search on a window of three standard deviations of the
+  (:mod:`circsim.slam.scanmatch`: a correlative search on a window of three standard deviations of the
   odometry's accumulated uncertainty, capped by ``matcher`` and at least one cell and one angular step,
   then Gauss–Newton), and the scan is integrated at the corrected pose. With gmapping's update rule
   (``linear_update_m`` / ``angular_update_rad``) every scan is still matched but only the
@@ -42,8 +42,8 @@ import numpy as np
 
 from merger.grid import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, OccupancyGrid
 
+from ..world.motion import Pose
 from . import scanmatch
-from .motion import Pose
 
 SLAM_MODELS = ("scan_matching", "odometry_only")
 WINDOW_SIGMAS = 3.0  # the correlative window covers this many standard deviations of the prediction
@@ -94,7 +94,7 @@ class OdometryConfig:
 
 @dataclass(frozen=True)
 class MatcherConfig:
-    """The scan matcher of the ``scan_matching`` model (:mod:`circsim.scanmatch`).
+    """The scan matcher of the ``scan_matching`` model (:mod:`circsim.slam.scanmatch`).
 
     linear_window_m, angular_window_deg : the largest correlative window (± on each axis, ± in yaw):
         Cartographer's ``real_time_correlative_scan_matcher`` defaults (0.1 m, 20°). The window used is

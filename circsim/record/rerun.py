@@ -39,7 +39,7 @@ Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
                                             and against the estimated-frame truth
     /plots/<robot>/slam_pose_error          Scalars: its SLAM pose estimate's error, every tick: position (cm)
                                             and yaw (°) (sent in columns with the poses)
-    /plots/<robot>/cycle_ms                 Scalars: merge cycle cost (wall time + shared results taken, merger.memo)
+    /plots/<robot>/cycle_ms                 Scalars: merge cycle cost (wall time + shared results taken, merger.team.memo)
     /plots/<robot>/teammates_placed         Scalars: teammates its held alignment places correctly, and the
                                             maps of the cycle (a partial team merges fewer than all)
     /events/<robot>, /events/sim            TextLog: publications, receptions, merges, run events
@@ -91,11 +91,11 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
-from merger.mapio import one_line
-from merger.online import resolve_strategy
-from merger.overlay import colours_for, overlay_rgb
+from merger.io.mapio import one_line
+from merger.io.overlay import colours_for, overlay_rgb
+from merger.team.online import resolve_strategy
 
-from .events import MergeCycle, Observer, RobotTick
+from ..events import MergeCycle, Observer, RobotTick
 
 APP_ID = "circsim"
 RRD_FOOTER_MAGIC = b"RRF2FOOT"  # the last bytes of a complete .rrd (rerun-sdk 0.41's format)
@@ -788,13 +788,13 @@ def _column_values(col) -> list:
 # --- helpers -------------------------------------------------------------------------------------------
 @functools.lru_cache(maxsize=16)
 def _overlay_lut(names: tuple[str, ...]) -> np.ndarray:
-    """RGB of every combination of cell states (3**N, 3), computed by :func:`merger.overlay.overlay_rgb`."""
+    """RGB of every combination of cell states (3**N, 3), computed by :func:`merger.io.overlay.overlay_rgb`."""
     combos = np.array(list(itertools.product(range(3), repeat=len(names))), np.uint8)
     return overlay_rgb([combos[:, k, None] for k in range(len(names))], list(names))[:, 0]
 
 
 def overlay_fast(layers: list[np.ndarray], names: list[str]) -> np.ndarray:
-    """Same image as :func:`merger.overlay.overlay_rgb` (which it tabulates), ~20x faster for N <= 5 maps.
+    """Same image as :func:`merger.io.overlay.overlay_rgb` (which it tabulates), ~20x faster for N <= 5 maps.
 
     A cell's colour depends only on the states of that cell in the N layers, so the 3**N colours are
     computed once by ``overlay_rgb`` itself and looked up.
@@ -890,13 +890,13 @@ def _key(v) -> tuple:
 
 
 def _scenario_dict(sc) -> dict:
-    from .scenario import scenario_to_dict
+    from ..config.scenario import scenario_to_dict
 
     return scenario_to_dict(sc)
 
 
 def _json_block(d) -> str:
-    """``d`` as a Markdown JSON block, its floats written as in the run's JSON file (:mod:`circsim.jsonout`)."""
+    """``d`` as a Markdown JSON block, its floats written as in the run's JSON file (:mod:`circsim.record.jsonout`)."""
     from . import jsonout
 
     return "```json\n" + jsonout.dumps(d, indent=2, default=str) + "\n```\n"

@@ -102,7 +102,7 @@ def plot_sweep(rows: list[dict], line_keys: list[str], path: Path, *, title: str
     fig = sweep_figure(rows, line_keys, title=title, x_key=x_key)
     import io
 
-    from merger.mapio import write_files
+    from merger.io.mapio import write_files
 
     buf = io.BytesIO()
     fig.savefig(buf, dpi=90, format="png")

@@ -11,9 +11,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from merger.mapio import ensure_output_dir, write_files
+from merger.io.mapio import ensure_output_dir, write_files
 
-from . import jsonout
+from ..record import jsonout
 
 
 def _scenario_args(p) -> None:
@@ -57,7 +57,7 @@ def register_offline(sub) -> None:
 
 
 def cmd_offline(args) -> int:
-    from .cli import begin_work, load_with_overrides
+    from ..cli import begin_work, load_with_overrides
     from .offline import OfflineSettings
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
@@ -71,7 +71,7 @@ def cmd_offline(args) -> int:
     scenarios = [b.with_overrides([f"seed={int(b.seed) + i}"]) for b in bases for i in range(args.seeds)]
     if args.out:
         ensure_output_dir(args.out, "--out")
-        from merger.mapio import check_outputs
+        from merger.io.mapio import check_outputs
 
         check_outputs({args.out / n: "--out" for n in ("offline.csv", "offline_seeds.csv", "offline.json",
                                                        "offline_records.jsonl", "ncc_calibration.json")})
@@ -103,9 +103,9 @@ def check_offline_args(args) -> None:
 def _offline(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
-    from merger.mapio import save_map
+    from merger.io.mapio import save_map
 
-    from .cli import interrupted_code, show_progress
+    from ..cli import interrupted_code, show_progress
     from .offline import default_search_method, format_table, run_offline, summarize
 
     search = settings.search_method or default_search_method()
@@ -159,7 +159,7 @@ def save_first_merge(r, path: Path, *, cell_px: int = 2) -> Path:
     with its scene, method and ±φ in the title, a legend of robot colours and a 1 m scale bar."""
     import cv2
 
-    from merger.overlay import overlay_picture
+    from merger.io.overlay import overlay_picture
 
     fm = r.first_merge
     names = list(fm.layers)
@@ -188,7 +188,7 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
 def _calibrate(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
-    from .cli import show_progress
+    from ..cli import show_progress
     from .offline import calibrated_threshold, ncc_calibration_rows
 
     rows = []
@@ -228,7 +228,7 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import load_with_overrides
+    from ..cli import load_with_overrides
     from .sweep import SweepError, check_dask, lock_out, parse_grid, plan
 
     if args.workers is not None and args.workers < 1:
@@ -245,7 +245,7 @@ def cmd_sweep(args) -> int:
 
 
 def _sweep(args, base, axes, tasks) -> int:
-    from .cli import begin_work, interrupted_code, show_progress
+    from ..cli import begin_work, interrupted_code, show_progress
     from .sweep import (
         check_sweep_outputs,
         execute,
@@ -276,7 +276,7 @@ def _sweep(args, base, axes, tasks) -> int:
     if rows:
         paths = write_tables(rows, summary, args.out)
         if not args.no_plots:
-            from .sweep_plot import choose_axes, plot_sweep
+            from .plots import choose_axes, plot_sweep
 
             x_key, line_keys = choose_axes([a.key for a in axes])
             paths.append(plot_sweep(rows, line_keys, args.out / "sweep.png", title=f"sweep {base.name}",

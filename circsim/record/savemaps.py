@@ -1,7 +1,7 @@
 """``circsim run --save-maps DIR``: the robots' maps as ROS map_server files, for ``merger merge``.
 
 Every robot's last published map (its own frame) is written as ``DIR/<robot>.yaml`` + ``.pgm``, with
-``DIR/centers.yaml`` (:func:`merger.mapio.centers_yaml`): each map's common center as given to the merger
+``DIR/centers.yaml`` (:func:`merger.io.mapio.centers_yaml`): each map's common center as given to the merger
 (with the scenario's center error) and exact, the robot's start pose in the world, the ground truth of
 every map onto the first robot's (θ*, t* about the given centers, as the run's metrics judge it) and the
 ``merger merge`` command that merges the maps with the scenario's merge parameters.
@@ -14,10 +14,10 @@ import re
 from pathlib import Path
 
 from merger.cli import merge_command
-from merger.mapio import CENTERS_FILE, centers_yaml, map_files
+from merger.io.mapio import CENTERS_FILE, centers_yaml, map_files
 
-from .events import Observer
-from .sim import merge_params
+from ..events import Observer
+from ..sim import merge_params
 
 
 class MapSaver(Observer):
@@ -38,7 +38,7 @@ class MapSaver(Observer):
 
     def files(self, out: Path) -> dict:
         """``{path: bytes}`` of the maps and ``centers.yaml`` under ``out`` (nothing if no map was
-        published): pass it to :func:`merger.mapio.write_files`."""
+        published): pass it to :func:`merger.io.mapio.write_files`."""
         names = [n for n in self.sim.robot_names if n in self.grids]
         stem = {n: file_stem(n, i) for i, n in enumerate(names)}
         files: dict = {}

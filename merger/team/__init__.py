@@ -1,0 +1,1 @@
+"""Merging a team's maps."""

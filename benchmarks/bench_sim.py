@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     ap.add_argument("--window-error", type=float, default=0.25, help="center error of run 4, metres")
     args = ap.parse_args(argv)
 
-    from circsim.cli import resolve_scenario
+    from circsim.commands import resolve_scenario
 
     sc = load_scenario(resolve_scenario(args.scenario))
     duration = 20.0 if args.quick and args.duration is None else args.duration

@@ -1,10 +1,16 @@
-"""A small thread-safe LRU cache bounded in entries and in bytes, and a content key for arrays.
+"""The merger's caches: a small thread-safe LRU cache bounded in entries and in bytes, a content key for
+arrays, and :func:`clear_all` — the one way to empty every cache the merger keeps between calls.
 
 The merger keeps a few derived arrays between searches (polar spectra of a map, sample indices) so
 that an unchanged map is not processed again in the next merge cycle. A simulation runs for minutes
 and every published map is new, so every such cache must forget: :class:`BoundedCache` evicts the
 least recently used entries once it holds more than ``max_entries`` values or ``max_bytes`` bytes of
 numpy arrays. Keys are cheap (geometry and a content digest, :func:`array_digest`), never a scan.
+
+No answer depends on a cache (a cached value is a pure function of its key): :func:`clear_all` only
+returns memory, e.g. between the independent runs of a sweep worker. Callers outside the merger clear
+caches through it, never through a cache module of their own choosing (:mod:`merger.search.caches`
+holds the search's).
 """
 
 from __future__ import annotations
@@ -14,6 +20,8 @@ import threading
 from collections import OrderedDict
 
 import numpy as np
+
+from .search import caches as search_caches
 
 
 def array_digest(a: np.ndarray) -> bytes:
@@ -83,3 +91,10 @@ class BoundedCache:
             self._data.clear()
             self._bytes = 0
             self.hits = self.misses = 0
+
+
+def clear_all() -> None:
+    """Forget every cache the merger keeps between calls: the search's prepared searchers and moving-map
+    arrays (:func:`merger.search.caches.clear_all`). A merge cycle's :class:`merger.team.memo.Memo` belongs
+    to its caller and goes with it."""
+    search_caches.clear_all()

@@ -29,17 +29,16 @@ from .io.mapio import (
     map_files,
     map_input_paths,
     map_paths,
+    merge_command,
     overlay_png,
     write_files,
 )
+from .limits import MAX_ROI_M, MIN_ROI_CELLS
 from .measures import MEASURES
 from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
 from .team.orders import MapInput, MergeParams, merge_team
 from .team.verify import no_evidence, verify, verify_contrast
 from .transform import canvas, paste, rotation, warp_grid
-
-MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
-MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -377,28 +376,6 @@ def check_same_resolution(paths: list[Path], grids) -> None:
         if not math.isclose(g.resolution, r0, rel_tol=1e-6):
             raise UsageError(f"{p}: resolution {g.resolution:g} m per cell, but {paths[0]} has {r0:g}: expected "
                              "maps of one resolution (resample one first)")
-
-
-def merge_command(paths, centers, out, params: MergeParams | None = None) -> str:
-    """The ``merger merge`` command line that merges ``paths`` with their ``centers`` (one per map) into
-    ``out``, with the merge options of ``params`` that differ from the defaults."""
-    import shlex
-
-    words = ["merger", "merge", *(str(p) for p in paths)]
-    for x, y in centers:
-        words += ["--center", f"{round(x, 6) + 0.0:.6f},{round(y, 6) + 0.0:.6f}"]  # no "-0.000000"
-    d = MergeParams()
-    for opt, key in (("--roi", "roi_m"), ("--measure", "measure"), ("--method", "method"),
-                     ("--window", "window_m"), ("--nu-min", "nu_min"), ("--min-support", "min_support")):
-        if params is not None and getattr(params, key) != getattr(d, key):
-            words += [opt, f"{getattr(params, key):g}" if isinstance(getattr(params, key), float)
-                      else str(getattr(params, key))]
-    if params is not None and not params.refine:
-        words.append("--no-refine")
-    if params is not None and not params.combine_orders:
-        words.append("--no-combine-orders")
-    words += ["-o", str(out)]
-    return " ".join(shlex.quote(w) for w in words)
 
 
 def report_merge(res, as_json: bool) -> None:

@@ -24,6 +24,7 @@ from circsim.config.scenario import (
 )
 from merger.grid import OccupancyGrid
 from merger.io.mapio import MapFileError, load_map
+from tests.paths import REPO
 
 EXAMPLES = {"scenario_data": 400, "scenario_text": 200, "set": 400, "map_yaml": 300, "map_image": 200}
 
@@ -184,9 +185,8 @@ def test_map_image_bytes_refused_in_one_line(tmp_path_factory, data, suffix):
 
 
 def test_example_counts_are_what_the_docs_say():
-    from pathlib import Path
 
-    page = (Path(__file__).resolve().parents[1] / "docs" / "troubleshooting.md").read_text()
+    page = (REPO / "docs" / "troubleshooting.md").read_text()
     total = sum(EXAMPLES.values())
     assert f"{total} generated inputs" in page
 

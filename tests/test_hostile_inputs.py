@@ -39,12 +39,12 @@ from merger.io.mapio import (
 )
 from merger.search import MAX_ROI_CELLS, RotationProblem, search
 from merger.search.refine import REMAP_MAX_COLS, _remap_mean
-
-from .subproc import run_capped
+from tests.paths import REAL_MAP
+from tests.subproc import run_capped
 
 BIN = Path(sys.executable).parent
 REFUSED_PEAK_BYTES = 300 << 20  # a refused input costs no more than starting the program
-OFFICE = Path(__file__).parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+OFFICE = REAL_MAP
 
 
 def one_line_error(err: str, prog: str, *needles: str) -> str:

@@ -10,7 +10,7 @@ is ten). Beyond types, the loader refuses what would run but could not mean anyt
 a room that does not hold the center, the robots' circle (plus their bodies), a pillar or an object; a
 pillar or object on a robot's start; sizes that would not fit in memory or take hours (a grid above
 :data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
-``merger.cli.MAX_ROI_M``). A room given as ``walls`` (which need not close) has no inside to check.
+``merger.limits.MAX_ROI_M``). A room given as ``walls`` (which need not close) has no inside to check.
 """
 
 from __future__ import annotations
@@ -19,19 +19,42 @@ import copy
 import math
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
-import numpy as np
 import yaml
 
-from merger.cli import MAX_ROI_M, MIN_ROI_CELLS
-from merger.io.mapio import MAX_YAML_BYTES, InputLimitError, load_yaml, one_line, read_input
+from merger.limits import (
+    MAX_ROI_M,
+    MAX_YAML_BYTES,
+    MIN_ROI_CELLS,
+    InputLimitError,
+    load_yaml,
+    one_line,
+    read_input,
+)
 from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
 from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
 
-from ..network import NetworkConfig
-from ..slam.models import SLAM_MODELS, DriftConfig, LogOddsConfig, MatcherConfig, OdometryConfig, SlamConfig
-from ..world.laser import LaserConfig
+from .types import (
+    SLAM_MODELS,
+    Box,
+    CenterErrorSpec,
+    Chair,
+    DriftConfig,
+    LaserConfig,
+    LogOddsConfig,
+    MatcherConfig,
+    NetworkConfig,
+    OdometryConfig,
+    OfflineMotion,
+    OutputSpec,
+    OverturnedChair,
+    Pillar,
+    RobotsSpec,
+    Room,
+    SlamConfig,
+    WorldSpec,
+)
 from .validate import (
     Invalid,
     bad,
@@ -49,7 +72,6 @@ from .validate import (
     vec2,
 )
 
-Vec2 = tuple[float, float]
 MAX_GRID_CELLS = 4000  # cells on a side of a robot's grid (200 m at 5 cm): 64 MB of log-odds per robot
 MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
 MAX_BEAMS = 100_000
@@ -64,103 +86,6 @@ class ScenarioError(ValueError):
 
     def __init__(self, message: str) -> None:
         super().__init__(one_line(message))
-
-
-@dataclass(frozen=True)
-class Room:
-    """Walls: a rectangle (``size_m`` [w, h] around ``center``) or explicit ``walls`` segments."""
-
-    size_m: Vec2 | None = (8.0, 6.0)
-    center: Vec2 | None = None
-    walls: tuple[tuple[float, float, float, float], ...] = ()
-
-    def wall_segments(self) -> tuple[tuple[float, float, float, float], ...]:
-        """All walls as (ax, ay, bx, by)."""
-        if self.size_m is None:
-            return self.walls
-        (cx, cy), (w, h) = self.center or (0.0, 0.0), self.size_m
-        c = [(cx - w / 2, cy - h / 2), (cx + w / 2, cy - h / 2), (cx + w / 2, cy + h / 2),
-             (cx - w / 2, cy + h / 2)]
-        return tuple((*c[i], *c[(i + 1) % 4]) for i in range(4))
-
-
-@dataclass(frozen=True)
-class Pillar:
-    center: Vec2
-    radius: float = 0.2
-
-
-@dataclass(frozen=True)
-class Chair:
-    """A chair of which only the four legs (circles on a square) are in the laser plane."""
-
-    type: ClassVar[str] = "chair"
-    center: Vec2
-    yaw_deg: float = 0.0
-    leg_spacing_m: float = 0.4
-    leg_radius_m: float = 0.02
-
-
-@dataclass(frozen=True)
-class OverturnedChair:
-    """A chair lying on its side: seat and back are two segments forming an L."""
-
-    type: ClassVar[str] = "overturned_chair"
-    center: Vec2
-    yaw_deg: float = 0.0
-    seat_m: float = 0.42
-    back_m: float = 0.45
-
-
-@dataclass(frozen=True)
-class Box:
-    type: ClassVar[str] = "box"
-    center: Vec2
-    size_m: Vec2 = (0.5, 0.5)
-    yaw_deg: float = 0.0
-
-
-@dataclass(frozen=True)
-class WorldSpec:
-    center: Vec2 = (0.0, 0.0)
-    room: Room = Room()
-    pillars: tuple[Pillar, ...] = ()
-    objects: tuple[Chair | OverturnedChair | Box, ...] = ()
-
-
-@dataclass(frozen=True)
-class OfflineMotion:
-    max_deg: float = 60.0
-    step_deg: float = 1.0
-
-
-@dataclass(frozen=True)
-class RobotsSpec:
-    """The robots on the circle (see :mod:`circsim.world.motion` for the heading rules)."""
-
-    names: tuple[str, ...] = ("Lyon", "Auckland", "Nevers")
-    radius_m: float = 1.75
-    start_angles_deg: tuple[float, ...] = (90.0, 210.0, 330.0)
-    heading: str = "center"
-    yaw_offsets_deg: tuple[float, ...] = (0.0, 0.0, 0.0)
-    speed_mps: float = 0.2
-    motion: str = "online"
-    offline: OfflineMotion = OfflineMotion()
-    body_radius_m: float = 0.18
-
-
-@dataclass(frozen=True)
-class CenterErrorSpec:
-    """Error on the common center given to each robot, metres in its map frame."""
-
-    magnitude_m: float = 0.0
-    per_robot: dict[str, Vec2] = field(default_factory=dict)
-
-    def vectors(self, names, rng: np.random.Generator) -> dict[str, Vec2]:
-        """Each robot's error: ``per_robot`` if given, else ``magnitude_m`` in a direction from ``rng``."""
-        angles = rng.uniform(0.0, 2.0 * math.pi, size=len(names))  # drawn for all: stable streams
-        return {n: self.per_robot.get(n, (self.magnitude_m * math.cos(a), self.magnitude_m * math.sin(a)))
-                for n, a in zip(names, angles, strict=True)}
 
 
 @dataclass(frozen=True)
@@ -216,14 +141,6 @@ class MergerSettings:
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
-
-
-@dataclass(frozen=True)
-class OutputSpec:
-    rrd: str | None = None
-    scan_log_hz: float = 2.0
-    json: str | None = None
-    merged_log_period_s: float | None = None  # None: the SLAM publish period; 0: every accepted merge
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 Each entry is a function ``register(subparsers)`` that adds one subparser and sets its handler with
 ``parser.set_defaults(func=handler)``; the handler takes the parsed args and returns an exit code.
 A user error raises ``ValueError`` (or a subclass) with a one-line message: ``circsim.cli.main``
-prints it and exits with 2.
+prints it and exits with 2 (:mod:`circsim.commands`: what the commands share).
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def register_offline(sub) -> None:
 
 
 def cmd_offline(args) -> int:
-    from ..cli import begin_work, load_with_overrides
+    from ..commands import begin_work, load_with_overrides
     from .offline import OfflineSettings
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
@@ -105,7 +105,7 @@ def _offline(scenarios, settings, args) -> int:
 
     from merger.io.mapio import save_map
 
-    from ..cli import interrupted_code, show_progress
+    from ..commands import interrupted_code, show_progress
     from .offline import default_search_method, format_table, run_offline, summarize
 
     search = settings.search_method or default_search_method()
@@ -188,7 +188,7 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
 def _calibrate(scenarios, settings, args) -> int:
     from tqdm import tqdm
 
-    from ..cli import show_progress
+    from ..commands import show_progress
     from .offline import calibrated_threshold, ncc_calibration_rows
 
     rows = []
@@ -228,7 +228,7 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from ..cli import load_with_overrides
+    from ..commands import load_with_overrides
     from .sweep import SweepError, check_dask, lock_out, parse_grid, plan
 
     if args.workers is not None and args.workers < 1:
@@ -245,7 +245,7 @@ def cmd_sweep(args) -> int:
 
 
 def _sweep(args, base, axes, tasks) -> int:
-    from ..cli import begin_work, interrupted_code, show_progress
+    from ..commands import begin_work, interrupted_code, show_progress
     from .sweep import (
         check_sweep_outputs,
         execute,

@@ -45,6 +45,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+import merger.caches
 from merger.grid import OccupancyGrid
 from merger.search import angle_diff_deg
 from merger.team.orders import MapInput, MergeParams, TeamMergeResult, merge_team
@@ -350,9 +351,7 @@ def run_offline(sc: Scenario, settings: OfflineSettings = OfflineSettings(), *,
     """The experiment on one scenario and its seed: per method a :class:`SeedResult`, and every record."""
     max_deg = settings.max_deg if settings.max_deg is not None else sc.robots.offline.max_deg
     step_deg = settings.step_deg if settings.step_deg is not None else sc.robots.offline.step_deg
-    from .sweep import clear_merger_caches
-
-    clear_merger_caches()
+    merger.caches.clear_all()  # each scenario's memory at its floor (no answer changes)
     bench = OfflineBench(sc, others=settings.others, scans_per_pose=settings.scans_per_pose,
                          drift=settings.drift)
     params = {m: method_params(sc, m, settings) for m in settings.methods}

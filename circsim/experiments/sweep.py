@@ -42,7 +42,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from merger.io.mapio import load_yaml
+import merger.caches
+from merger.limits import load_yaml
 
 from ..config.scenario import ALIASES, Scenario, ScenarioError, scenario_from_dict
 from ..events import Observer
@@ -159,19 +160,11 @@ def run_one(task: RunTask) -> dict:
     from ..sim import run_scenario
 
     sc = task.scenario()
-    clear_merger_caches()  # a worker runs many tasks: no cache carried from one run to the next
+    merger.caches.clear_all()  # a worker runs many tasks: its memory at its floor between runs (no answer changes)
     hyp = HypothesisStats()
     row = flatten(run_scenario(sc, [hyp]).to_dict(), task, sc)
     row.update(hyp.columns())
     return row
-
-
-def clear_merger_caches() -> None:
-    """Empty the merger's caches between runs (:func:`merger.search.clear_all`). They are bounded;
-    clearing them only keeps a worker's memory at its floor between runs."""
-    from merger.search import clear_all
-
-    clear_all()
 
 
 class HypothesisStats(Observer):

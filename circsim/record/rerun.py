@@ -91,8 +91,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
-from merger.io.mapio import one_line
 from merger.io.overlay import colours_for, overlay_rgb
+from merger.limits import one_line
 from merger.team.online import resolve_strategy
 
 from ..events import MergeCycle, Observer, RobotTick

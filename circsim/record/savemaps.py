@@ -13,8 +13,7 @@ import math
 import re
 from pathlib import Path
 
-from merger.cli import merge_command
-from merger.io.mapio import CENTERS_FILE, centers_yaml, map_files
+from merger.io.mapio import CENTERS_FILE, centers_yaml, map_files, merge_command
 
 from ..events import Observer
 from ..sim import merge_params

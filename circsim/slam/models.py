@@ -35,135 +35,20 @@ scan's window.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from merger.grid import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, OccupancyGrid
+from merger.grid import OccupancyGrid
 
+from ..config.types import SLAM_MODELS, SlamConfig
 from ..world.motion import Pose
 from . import scanmatch
 
-SLAM_MODELS = ("scan_matching", "odometry_only")
 WINDOW_SIGMAS = 3.0  # the correlative window covers this many standard deviations of the prediction
 MIN_SIGMA_M, MIN_SIGMA_RAD = 1e-4, 1e-5  # the prior's weight stays finite with exact odometry
 _FREE, _HIT = 1, 2  # codes in the per-scan mask
 _SHIFT = 8  # fractional bits of the sub-cell line end points given to OpenCV
-
-
-@dataclass(frozen=True)
-class DriftConfig:
-    """Odometry drift as a random walk in the distance travelled.
-
-    ``xy_m_per_m`` and ``yaw_deg_per_m`` are the standard deviations of the accumulated drift after
-    1 m of travel; after L metres they are ``value * sqrt(L)``, whatever the step size.
-    """
-
-    xy_m_per_m: float = 0.005
-    yaw_deg_per_m: float = 0.1
-
-
-@dataclass(frozen=True)
-class OdometryConfig:
-    """Wheel-odometry noise of the ``scan_matching`` model: Probabilistic Robotics' α1–α4 (table 5.6) and
-    amcl's α5 for the sideways slip of a holonomic base, in the corrected form σ = √(α·δ²).
-
-    alpha1 : rotation noise from rotation (rad²/rad²); alpha2 : rotation noise from translation (rad²/m²);
-    alpha3 : translation noise from translation (m²/m²); alpha4 : translation (and sideways) noise from
-    rotation (m²/rad²); alpha5 : sideways noise from translation (m²/m²) — ROS amcl's ``odom_alpha1``–``5``.
-
-    Defaults: the noise of ROS amcl's defaults (every ``odom_alpha`` 0.2 with its default models
-    ``diff``/``omni``, which draw σ = α·δ², the form its ``*-corrected`` models fix: the ROS wiki warns
-    that these need "a lot smaller" α) at amcl's own update step (``update_min_d`` 0.2 m,
-    ``update_min_a`` π/6), written in the corrected form: α' = (0.2·δ)², 0.0016 for the terms in
-    translation (δ = 0.2 m), 0.011 for those in rotation (δ = π/6). That is σ = 0.008 rad of yaw and
-    8 mm per 0.2 m driven, as amcl assumes. Taking 0.2 itself in the corrected form (σ = 0.45·δ, about
-    0.6° of yaw per 10 Hz scan) makes odometry nearly worthless: with eight robots on one circle, which
-    all turn together and so look still to each other, the matcher then follows the formation instead
-    of the room (hall8 drifted 7° in 3 s). The noise is drawn once per scan, so its effect over a path
-    depends on ``dt_s``.
-    """
-
-    alpha1: float = 0.011
-    alpha2: float = 0.0016
-    alpha3: float = 0.0016
-    alpha4: float = 0.011
-    alpha5: float = 0.0016
-
-
-@dataclass(frozen=True)
-class MatcherConfig:
-    """The scan matcher of the ``scan_matching`` model (:mod:`circsim.slam.scanmatch`).
-
-    linear_window_m, angular_window_deg : the largest correlative window (± on each axis, ± in yaw):
-        Cartographer's ``real_time_correlative_scan_matcher`` defaults (0.1 m, 20°). The window used is
-        three standard deviations of the odometry's uncertainty since the last matched scan, within these
-        caps, at least one cell and one angular step.
-    max_points : scan points matched at most (every k-th valid return); Cartographer's adaptive voxel
-        filter aims at 200.
-    point_sigma_m : the standard deviation of a scan point's distance to the map's wall (the laser's
-        noise and the map's own); it weighs the scan against the odometry: the refinement is the most
-        probable pose given N such points and the odometry's prediction with its accumulated variance.
-        0.03 m, measured on the bundled scenes (10-minute runs): 0.02 lets hall8's co-rotating
-        teammates pull the poses (1.2° in 2 s), 0.05 trusts the odometry so much that hall4's poses ran
-        away after five minutes (57 cm, 7.8°); at 0.03 hall4 held 8 cm / 1.2° for 7 minutes.
-    min_log_odds : cells below this log-odds are not matched (0.5: one hit of the default 0.85 is
-        enough; more hits delay the matching of what a sparse gmapping-rule map has just seen, and the
-        thesis scenes then drift by degrees). Cells hit while the map held them free are never matched:
-        a teammate driving by would drag the pose along its path (measured on hall4: a robot's yaw
-        drifted −1.6° in 30 s matching every occupied cell).
-    """
-
-    linear_window_m: float = 0.1
-    angular_window_deg: float = 20.0
-    max_points: int = 200
-    point_sigma_m: float = 0.03
-    min_log_odds: float = 0.5
-
-
-@dataclass(frozen=True)
-class LogOddsConfig:
-    """Inverse sensor model increments and the symmetric clamp |l| ≤ clamp."""
-
-    hit: float = 0.85
-    miss: float = -0.4
-    clamp: float = 3.5
-
-
-@dataclass(frozen=True)
-class SlamConfig:
-    """Grid and noise parameters of the synthetic SLAM.
-
-    model : ``scan_matching`` (odometry corrected by matching each scan to the map) or
-        ``odometry_only`` (the random-walk drift, never corrected: a stress option).
-    resolution_m : cell size.
-    size_m : side of the square grid, centred on the start pose (must hold the robot's circle plus
-        the laser range that matters: the room).
-    odometry, matcher : the ``scan_matching`` model's odometry noise and scan matcher.
-    drift : the ``odometry_only`` model's random-walk drift.
-    log_odds : inverse sensor model.
-    occupied_thresh, free_thresh : probability thresholds to ternary (map_server's rule).
-    publish_period_s : how often the robot publishes its map (used by the simulation loop; gmapping's
-        ``map_update_interval``, default 5 s).
-    linear_update_m, angular_update_rad : integrate a scan only after the robot has moved this far or
-        turned this much since the last integrated one (gmapping's ``linearUpdate`` = 1.0 m and
-        ``angularUpdate`` = 0.5 rad by default); the first scan is always integrated. 0 and 0 (the
-        default here): every scan is integrated.
-    """
-
-    model: str = "scan_matching"
-    resolution_m: float = 0.05
-    size_m: float = 16.0
-    odometry: OdometryConfig = field(default_factory=OdometryConfig)
-    matcher: MatcherConfig = field(default_factory=MatcherConfig)
-    drift: DriftConfig = field(default_factory=DriftConfig)
-    log_odds: LogOddsConfig = field(default_factory=LogOddsConfig)
-    occupied_thresh: float = DEFAULT_OCCUPIED_THRESH
-    free_thresh: float = DEFAULT_FREE_THRESH
-    publish_period_s: float = 2.0
-    linear_update_m: float = 0.0
-    angular_update_rad: float = 0.0
 
 
 class Slam:

@@ -18,61 +18,18 @@ This module never imports pymunk itself: the pymunk path goes through ``world.sp
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from ..config.types import LaserConfig
 
 if TYPE_CHECKING:  # pragma: no cover
     from .world import World
 
 METHODS = ("numpy", "pymunk")
 _TINY = np.finfo(np.float64).tiny  # Chipmunk's CPFLOAT_MIN in cpvnormalize
-
-
-@dataclass(frozen=True)
-class LaserConfig:
-    """Scanner parameters (defaults: Hokuyo URG-04LX).
-
-    Parameters
-    ----------
-    fov_deg : field of view, centred on the robot's heading; 360 gives a full turn.
-    beams : number of beams; 667 over 240° gives an increment of 0.36°.
-    range_max_m, range_min_m : measurable range in metres.
-    rate_hz : scan rate (the simulation step is chosen by the scenario's ``dt_s``).
-    noise_std_m : standard deviation of additive Gaussian range noise on returns.
-    noise_rel : ... and at least this fraction of the range (σ = max(noise_std_m, noise_rel · r)); the
-        URG-04LX's datasheet accuracy is ±30 mm up to 1 m and ±3% of the range beyond. 0: constant σ.
-    dropout : probability that a beam returns an erroneous reading (``NaN``).
-    """
-
-    fov_deg: float = 240.0
-    beams: int = 667
-    range_max_m: float = 5.6
-    range_min_m: float = 0.02
-    rate_hz: float = 10.0
-    noise_std_m: float = 0.01
-    dropout: float = 0.0
-    noise_rel: float = 0.0
-
-    @property
-    def angle_increment(self) -> float:
-        """Radians between beams (a full turn has no duplicate beam at +180°)."""
-        fov = math.radians(self.fov_deg)
-        return fov / self.beams if self.fov_deg >= 360.0 else fov / (self.beams - 1)
-
-    @property
-    def angle_min(self) -> float:
-        return -math.radians(self.fov_deg) / 2.0
-
-    @property
-    def angle_max(self) -> float:
-        return self.angle_min + (self.beams - 1) * self.angle_increment
-
-    def angles(self) -> np.ndarray:
-        """Beam angles in the laser frame, radians, ``angle_min + k * angle_increment``."""
-        return self.angle_min + np.arange(self.beams) * self.angle_increment
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,8 @@ import pymunk
 from .motion import Pose, trajectories
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..config.scenario import Box, Chair, OverturnedChair, Scenario
+    from ..config.scenario import Scenario
+    from ..config.types import Box, Chair, OverturnedChair
 
 
 @dataclass(frozen=True, eq=False)

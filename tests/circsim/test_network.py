@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from circsim.network import Message, Network, NetworkConfig
+from circsim.config.types import NetworkConfig
+from circsim.network import Message, Network
 
 
 def net(seed=0, **kw) -> Network:

@@ -1,12 +1,12 @@
 """docs/scenario-reference.md is generated from the scenario loader's checks and must be current."""
 
-from pathlib import Path
 
 from circsim.cli import main
 from circsim.config.reference_doc import scenario_reference
 from circsim.config.scenario import _TOP
+from tests.paths import REPO
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "scenario-reference.md"
+DOC = REPO / "docs" / "scenario-reference.md"
 
 
 def test_reference_in_docs_is_current():

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from circsim.config.scenario import bundled_scenarios, load_scenario
-from circsim.slam.models import DriftConfig, OdometryConfig, Slam, SlamConfig, scanmatch
-from circsim.world.laser import LaserConfig, LaserScan, scan
+from circsim.config.types import DriftConfig, LaserConfig, OdometryConfig, SlamConfig
+from circsim.slam.models import Slam, scanmatch
+from circsim.world.laser import LaserScan, scan
 from circsim.world.motion import trajectories
 from circsim.world.world import World
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid

@@ -18,10 +18,10 @@ from merger.synthetic import arc_viewpoints, partial_view_of_grid, robot_pose_on
 from merger.team.orders import MapInput, fused_layers
 from merger.team.superpose import fuse
 from merger.transform import rotation
+from tests.paths import REAL_MAP
+from tests.strategies import three_views
 
-from .conftest import three_views
-
-REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+REAL = REAL_MAP
 
 
 @pytest.fixture(scope="module")

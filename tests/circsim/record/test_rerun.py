@@ -26,9 +26,8 @@ from circsim.world.motion import trajectories
 from circsim.world.world import World
 from merger.io.overlay import overlay_rgb
 from merger.team.orders import MapInput, MergeParams, merge_team
+from tests.strategies import three_views
 from tests.subproc import sigint_default, wait_for
-
-from .conftest import three_views
 
 NAMES = ["Lyon", "Auckland", "Nevers"]  # scene1's robots, and the names three_views gives its maps
 

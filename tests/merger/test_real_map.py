@@ -9,7 +9,6 @@ yaws; the merger never sees it.
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,8 +29,9 @@ from merger.synthetic import (
 )
 from merger.team.orders import MapInput, MergeParams, merge_team
 from merger.team.verify import verify
+from tests.paths import REAL_MAP
 
-REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+REAL = REAL_MAP
 F, O = 1, 2
 # Two places in the office: the widest free point (upper room) and the lower, cluttered room.
 CENTERS = {"upper": None, "lower": (-1.825, -2.825)}

@@ -14,8 +14,7 @@ from merger.grid import OccupancyGrid
 from merger.io.bagio import grid_from_message, read_bag_maps, topic_names
 from merger.io.mapio import MapFileError
 from merger.search import angle_diff_deg
-
-from .conftest import three_views
+from tests.strategies import three_views
 
 rosbags = pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
 

@@ -13,8 +13,7 @@ from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams, compose
 from merger.team.shared import HypothesisMessage, reframe
-
-from .conftest import three_views
+from tests.strategies import three_views
 
 P = MergeParams(roi_m=8.0)
 

@@ -10,7 +10,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from circsim.config.scenario import bundled_scenarios, load_scenario
-from circsim.world.laser import LaserConfig, raycast, scan
+from circsim.config.types import LaserConfig
+from circsim.world.laser import raycast, scan
 from circsim.world.motion import trajectories
 from circsim.world.world import World, laser
 

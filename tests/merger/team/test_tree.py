@@ -12,7 +12,7 @@ from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MapInput, MergeParams, _pair_key, compose, merge_team
 from merger.team.tree import PairResult, chain, merge_tree, relative, spanning_tree
 from merger.team.verify import Verification
-from tests.conftest import three_views
+from tests.strategies import three_views
 
 
 def test_spanning_tree_is_maximum_and_deterministic():

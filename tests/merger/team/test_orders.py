@@ -108,7 +108,7 @@ def test_online_cycles_reuse_the_search_of_an_unchanged_pair_with_the_same_resul
     """A cycle after one map changed searches 5 of 6 alignments: the pair of the two unchanged maps is
     reused from the previous cycle; every figure equals a cycle computed from scratch."""
     import merger.team.orders as team
-    from tests.conftest import three_views
+    from tests.strategies import three_views
 
     _, names, maps, _ = three_views(3)
     _, _, maps_later, _ = three_views(3, arc=25.0)  # the same robots, having seen more

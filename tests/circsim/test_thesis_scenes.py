@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.config.types import DriftConfig, LaserConfig, SlamConfig
 from circsim.sim import Simulation
-from circsim.slam.models import DriftConfig, Slam, SlamConfig
-from circsim.world.laser import LaserConfig, LaserScan, apply_sensor_model
+from circsim.slam.models import Slam
+from circsim.world.laser import LaserScan, apply_sensor_model
 
 GMAPPING = SlamConfig(model="odometry_only", drift=DriftConfig(0.0, 0.0), linear_update_m=1.0,
                       angular_update_rad=0.5)

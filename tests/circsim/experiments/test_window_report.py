@@ -1,17 +1,13 @@
-"""benchmarks/window_sweep_report.py: the center error × window table, and a clear refusal of other sweeps."""
+"""circsim.experiments.window_report (run as benchmarks/window_sweep_report.py): the center error × window table, and a clear refusal of other sweeps."""
 
-import importlib.util
 import json
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "window_sweep_report.py"
+from circsim.experiments import window_report
 
 
 def report():
-    spec = importlib.util.spec_from_file_location("window_sweep_report", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return window_report
 
 
 def write_rows(folder: Path, rows: list[dict]) -> Path:

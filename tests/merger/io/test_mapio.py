@@ -7,8 +7,9 @@ import pytest
 
 from merger.grid import OccupancyGrid
 from merger.io.mapio import MapFileError, load_map, save_map, save_overlay
+from tests.paths import REAL_MAP
 
-REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+REAL = REAL_MAP
 U, F, O = 0, 1, 2
 
 

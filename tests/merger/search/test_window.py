@@ -14,7 +14,6 @@ x_ref = c_ref + t + R(θ)(x_mov − c_mov), t within ±window_m in one-cell step
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -50,9 +49,10 @@ from merger.synthetic import (
 from merger.team.orders import MapInput, MergeParams, merge_team, place_on_frame0
 from merger.team.verify import verify
 from merger.transform import extract_roi, roi_cells, rotated_roi, rotation
-from tests.conftest import three_views
+from tests.paths import REAL_MAP
+from tests.strategies import three_views
 
-REAL = Path(__file__).resolve().parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+REAL = REAL_MAP
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
 RES = 0.05

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from merger.search import clear_all
+from merger.caches import clear_all
 from merger.synthetic import window_case
 from merger.team.orders import MapInput, MergeParams, merge_team
 from merger.team.pool import parallel_map

@@ -14,8 +14,7 @@ from merger.search import angle_diff_deg
 from merger.team.evidence import CONTRAST_MIN, contrast
 from merger.team.orders import Warps, shifted
 from merger.team.verify import verify_contrast
-
-from .conftest import three_views
+from tests.strategies import three_views
 
 
 def thick(g: OccupancyGrid) -> OccupancyGrid:

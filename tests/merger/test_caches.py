@@ -1,6 +1,6 @@
 """Bounded caches: LRU order, entry and byte bounds, content keys; and the search's one cache
 (:mod:`merger.search.caches`) staying within its bound over many merge cycles with changing maps (a long
-run must not grow), its answers equal to those computed after :func:`merger.search.clear_all`."""
+run must not grow), its answers equal to those computed after :func:`merger.caches.clear_all`."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from merger.grid import OccupancyGrid
 from merger.search import caches
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams, merge_team
-from tests.conftest import three_views
+from tests.strategies import three_views
 
 
 def test_bounded_cache_evicts_least_recently_used_by_count():

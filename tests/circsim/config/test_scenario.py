@@ -20,8 +20,7 @@ from circsim.config.scenario import (
     scenario_from_dict,
     scenario_to_dict,
 )
-
-REPO = Path(__file__).resolve().parents[1]
+from tests.paths import REPO
 
 
 def write(tmp_path: Path, text: str, name: str = "scene.yaml") -> Path:
@@ -247,3 +246,12 @@ def test_yaml_the_parser_cannot_construct_is_one_line(tmp_path, text):
     with pytest.raises(ScenarioError, match=r"^scene.yaml: invalid YAML") as e:
         load_scenario(write(tmp_path, text))
     assert "\n" not in str(e.value)
+
+
+def test_the_slam_thresholds_are_the_merger_s():
+    """circsim.config.types imports nothing of ours: its map thresholds are written out; they must stay
+    the merger's (map_server's) defaults."""
+    from circsim.config.types import SlamConfig
+    from merger.grid import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH
+
+    assert (SlamConfig().occupied_thresh, SlamConfig().free_thresh) == (DEFAULT_OCCUPIED_THRESH, DEFAULT_FREE_THRESH)

@@ -35,6 +35,7 @@ from .problem import (
     MAX_WINDOW_FRACTION,
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
+    BeyondQuery,
     angle_diff_deg,
     fine_angles,
     floored,
@@ -276,7 +277,7 @@ def fast_search(problem) -> Alignment:
     return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, profile,
                      runner_up(profile, theta), window_m=problem.window_m,
                      translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_vals),
-                     _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)),
+                     beyond_query=BeyondQuery(problem, best_value, (th_c, tc)),
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
@@ -366,7 +367,7 @@ def reference_search(problem) -> Alignment:
     return Alignment(theta, value, counts, problem.measure, "reference", problem.roi_m, profile,
                      runner_up(profile, theta), window_m=problem.window_m, translation_m=problem.offset_m(*tc),
                      cells=tc, fine=(angles, fine_vals),
-                     _beyond=lambda: reference_beyond(problem, best_value, (int(th_best), tc)),
+                     beyond_query=BeyondQuery(problem, best_value, (int(th_best), tc), "reference"),
                      evidence={"profile": "exact", "runner_up": "exact"})
 
 

@@ -25,12 +25,11 @@ import numpy as np
 from ..search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
+    BeyondQuery,
     RotationProblem,
     angle_diff_deg,
-    beyond_window,
     exact_runner_up,
     fine_angles,
-    reference_beyond,
     refine_alignment,
     searcher_for,
     wrap_deg,
@@ -161,14 +160,14 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
     theta, score = wrap_deg(float(angles[kf])), float(vals[kf])
     if al.score - score >= margin:
         return None
-    guard = reference_beyond if al.method == "reference" else beyond_window
     # the guard beyond the window for the rival's own answer: a better alignment outside the window than
     # the rival refuses it as it would the best (the best may be the truth's peak cut by the window's
     # edge, and the rival the scene's half turn)
     out = Alignment(theta, score, ev.exact(float(angles[kf]), *tc)[1], al.measure, al.method, al.roi_m, al.profile,
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
-                    _beyond=lambda: guard(problem, top_value, (int(round(th_c)) % 360, tc)),
+                    beyond_query=BeyondQuery(problem, top_value, (int(round(th_c)) % 360, tc),
+                                             "reference" if al.method == "reference" else "fast"),
                     evidence={"profile": al.evidence["profile"],  # the rival's runner-up is al itself
                               "runner_up": "exact"})
     return refine_alignment(problem, out) if problem.refine else out

@@ -18,8 +18,8 @@ from circsim.cli import main
 from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, RobotTick
 from circsim.metrics import RobotMetrics, RunResult, judge_placement
+from circsim.record import rerun as record
 from circsim.record.rerun import RerunRecorder, read_recording, rerun_executable, view
-from circsim.record.rerun import rerun as record
 from circsim.sim import truth_translation
 from circsim.world.laser import scan as laser_scan
 from circsim.world.motion import trajectories

@@ -133,8 +133,8 @@ def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
     it is unchanged), read back from the .rrd."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.events import MergeCycle
+    from circsim.record import rerun as record
     from circsim.record.rerun import RerunRecorder, read_recording
-    from circsim.record.rerun import rerun as record
     from circsim.world.motion import trajectories
     from circsim.world.world import World
 

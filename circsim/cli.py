@@ -256,7 +256,7 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from .record.rerun import view
+    from .record.viewer import view
 
     begin_work()
     return view(args.rrd, web=args.web)

@@ -209,7 +209,8 @@ def test_an_incomplete_recording_replaces_nothing(tmp_path):
 
 
 def test_a_sweep_folder_has_one_writer(tmp_path):
-    from circsim.experiments.sweep import SweepError, lock_out
+    from circsim.experiments.plan import SweepError
+    from circsim.experiments.store import lock_out
 
     held = lock_out(tmp_path)
     try:
@@ -222,7 +223,8 @@ def test_a_sweep_folder_has_one_writer(tmp_path):
 
 
 def test_a_malformed_resume_row_is_named_by_file_and_line(tmp_path):
-    from circsim.experiments.sweep import SweepError, read_rows
+    from circsim.experiments.plan import SweepError
+    from circsim.experiments.store import read_rows
 
     p = tmp_path / "runs.jsonl"
     p.write_text('{"run_key": "a"}\n{"run_key": "b", "torn\n[1]\n')
@@ -233,7 +235,7 @@ def test_a_malformed_resume_row_is_named_by_file_and_line(tmp_path):
 
 
 def test_grid_and_set_parse_values_alike():
-    from circsim.experiments.sweep import parse_grid
+    from circsim.experiments.plan import parse_grid
 
     base = load_scenario(bundled_scenarios()["scene1"])
     (axis,) = parse_grid(["center_error=1e-1,0.2"])

@@ -175,7 +175,7 @@ def save_first_merge(r, path: Path, *, cell_px: int = 2) -> Path:
 def _write_offline(out: Path, rows, seed_results, settings, search, args) -> None:
     from dataclasses import asdict
 
-    from .sweep import write_csv
+    from .tables import write_csv
 
     write_csv(rows, out / "offline.csv")
     write_csv([r.to_dict() for r in seed_results], out / "offline_seeds.csv")
@@ -229,7 +229,9 @@ def register_sweep(sub) -> None:
 
 def cmd_sweep(args) -> int:
     from ..commands import load_with_overrides
-    from .sweep import SweepError, check_dask, lock_out, parse_grid, plan
+    from .plan import SweepError, parse_grid, plan
+    from .store import lock_out
+    from .sweep import check_dask
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
@@ -246,15 +248,9 @@ def cmd_sweep(args) -> int:
 
 def _sweep(args, base, axes, tasks) -> int:
     from ..commands import begin_work, interrupted_code, show_progress
-    from .sweep import (
-        check_sweep_outputs,
-        execute,
-        format_summary,
-        prepare_out,
-        summarize,
-        sweep_rows,
-        write_tables,
-    )
+    from .store import check_sweep_outputs, prepare_out
+    from .sweep import execute
+    from .tables import format_summary, summarize, sweep_rows, write_tables
 
     check_sweep_outputs(args.out)
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)

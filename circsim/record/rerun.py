@@ -1,11 +1,14 @@
-"""Rerun recording of a run, and opening recorded runs: the only module of circsim that imports rerun.
+"""Rerun recording of a run: :class:`RerunRecorder`, and the entity tree it writes.
 
 * :class:`RerunRecorder` is a run :class:`~circsim.events.Observer`: it streams the run to a live viewer
   (``spawn=True``), to an ``.rrd`` file (``path``), or both.
-* :func:`view` opens a recorded run in the viewer shipped with rerun-sdk (``circsim view RUN.rrd [--web]``).
-* :func:`read_recording` reads a recording back with rerun's own chunk reader (tests use it).
+* :mod:`circsim.record.viewer` opens a recorded run (``circsim view RUN.rrd [--web]``) and reads it back;
+  :mod:`circsim.record.entities` turns our values into rerun's archetypes. Only ``circsim/record/`` imports
+  rerun (tests/test_layout.py checks it).
 
-It is longer than our other modules because it is, by design, the project's only rerun import.
+Why this module is longer than ~400 lines: the recorder is one Observer with one method per event and
+per plot (every hook of :class:`~circsim.events.Observer`, the file sink's bounded open and close), and
+this docstring is the recording's contract — the entity tree below, which the tests read back.
 
 Entity tree (W = world frame; M_i = robot i's map frame = its start pose in W)::
 
@@ -73,14 +76,9 @@ complete up to the interruption (``rerun rrd verify`` passes).
 
 from __future__ import annotations
 
-import functools
-import itertools
 import math
 import os
-import re
-import shutil
 import signal
-import subprocess
 import sys
 import threading
 import uuid
@@ -90,27 +88,38 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from merger.grid import known_bounds
-from merger.io.overlay import colours_for, overlay_rgb
+from merger.io.overlay import colours_for
 from merger.limits import one_line
 from merger.team.online import resolve_strategy
 
 from ..events import MergeCycle, Observer, RobotTick
+from .entities import (
+    GREY,
+    PALETTE,
+    circle_points,
+    default_blueprint,
+    dim_colour,
+    entity_part,
+    from_frame,
+    json_block,
+    known_window,
+    overlay_fast,
+    rr_grid_map,
+    rr_transform,
+    scenario_dict,
+    split_geometry,
+    to_frame,
+)
+from .viewer import has_display, rerun_executable
 
 APP_ID = "circsim"
 RRD_FOOTER_MAGIC = b"RRF2FOOT"  # the last bytes of a complete .rrd (rerun-sdk 0.41's format)
 RAY_BEAM_STRIDE = 12  # rays: one beam in twelve keeps the fan readable (seen in the viewer)
-CROP_MARGIN_CELLS = 20  # logged maps and overlays: known cells plus 1 m at 5 cm
 SCAN_Z, MAP_Z = 0.03, -0.02  # scans above the maps; local maps stacked below z = 0 so they do not z-fight
 VIEWER_PORT = 9876  # gRPC port of the viewer that ``spawn=True`` starts (rerun's default)
 FLUSH_TIMEOUT_S = 30.0
 POSE_BATCH_S = 1.0  # simulated seconds of poses sent at once (a live viewer lags by as much)
 _LEVELS = {"debug": "DEBUG", "info": "INFO", "warn": "WARN", "warning": "WARN", "error": "ERROR"}
-_GREY = (150, 150, 150)
-_PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
-            (227, 119, 194), (188, 189, 34), (23, 190, 207)]  # matplotlib tab10 without its grey
-
-
 class RecordingError(ValueError):
     """The recording cannot be written (one line naming the file)."""
 
@@ -214,7 +223,7 @@ class RerunRecorder(Observer):
         self._attach_sinks(bp)
         rec.send_recording_name(f"{sc.name} seed {sim.seed}")
         self._log_static_world(sim)
-        rec.log("run/scenario", rr.TextDocument(_json_block(_scenario_dict(sc)), media_type="text/markdown"),
+        rec.log("run/scenario", rr.TextDocument(json_block(scenario_dict(sc)), media_type="text/markdown"),
                 static=True)
         self._at(0.0, 0)
         pairs = zip(self.names, colours_for(self.names), strict=True)
@@ -241,7 +250,7 @@ class RerunRecorder(Observer):
         self._at(t, self.step)
         self.published[robot] += 1
         i = self.names.index(robot)
-        self.rec.log(f"world/robots/{_part(robot)}/map/local", _grid_map(grid, MAP_Z * (i + 1)))
+        self.rec.log(f"world/robots/{entity_part(robot)}/map/local", rr_grid_map(grid, MAP_Z * (i + 1)))
         self.centers_given[robot] = tuple(map(float, center_given))
         if self.centers_logged.get(robot) != tuple(center_given):
             self._log_center(robot, center_given, center_true)
@@ -328,7 +337,7 @@ class RerunRecorder(Observer):
         self._text("sim", "WARN" if d["interrupted"] else "INFO",
                    f"run {state} at {d['sim_s']:.1f} s simulated ({d['wall_s']:.1f} s wall): first correct "
                    f"merges {firsts}; false merges {d['false_merges']}; rejected correct {d['rejected_correct']}")
-        self.rec.log("run/metrics", rr.TextDocument(_json_block(d), media_type="text/markdown"), static=True)
+        self.rec.log("run/metrics", rr.TextDocument(json_block(d), media_type="text/markdown"), static=True)
         self.close()
 
     def close(self) -> None:
@@ -430,7 +439,7 @@ class RerunRecorder(Observer):
         self.rec.set_time("step", sequence=int(step))
 
     def _text(self, who: str, level: str, text: str) -> None:
-        self.rec.log(f"events/{_part(who)}", rr.TextLog(text, level=level))
+        self.rec.log(f"events/{entity_part(who)}", rr.TextLog(text, level=level))
 
     def _series(self, path: str, series: list[tuple[str, float, tuple | None]]) -> None:
         """Log one value per named series. The names (and colours) are declared once, statically; later
@@ -443,7 +452,7 @@ class RerunRecorder(Observer):
             known = set(declared)
             declared = self.series[path] = declared + tuple(n for n in values if n not in known)
             given = {name: col for name, _, col in series}
-            colours = [self.colours_of.setdefault((path, name), given.get(name) or _PALETTE[i % len(_PALETTE)])
+            colours = [self.colours_of.setdefault((path, name), given.get(name) or PALETTE[i % len(PALETTE)])
                        for i, name in enumerate(declared)]
             self.rec.log(path, rr.SeriesLines(names=list(declared), colors=colours), static=True)
         self.rec.log(path, rr.Scalars(np.array([values.get(name, math.nan) for name in declared], np.float64)))
@@ -451,7 +460,7 @@ class RerunRecorder(Observer):
     def _log_static_world(self, sim) -> None:
         rec, sc = self.rec, sim.scenario
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        walls, pillars, objects = _split_geometry(sc, sim.world.geometry())
+        walls, pillars, objects = split_geometry(sc, sim.world.geometry())
         rec.log("world/walls", rr.LineStrips3D(walls, colors=[(120, 120, 120)], radii=0.03), static=True)
         rec.log("world/pillars", rr.LineStrips3D(pillars, colors=[(255, 140, 0)], radii=0.015), static=True)
         rec.log("world/objects", rr.LineStrips3D(objects, colors=[(0, 200, 255)], radii=0.01), static=True)
@@ -460,27 +469,27 @@ class RerunRecorder(Observer):
                                             labels=["center"]), static=True)
         body = float(sc.robots.body_radius_m)
         for n in self.names:
-            col, p = self.colours[n], f"world/robots/{_part(n)}"
-            rec.log(f"{p}/circle", rr.LineStrips3D([_circle(cx, cy, sim.circle_radius)], colors=[col],
+            col, p = self.colours[n], f"world/robots/{entity_part(n)}"
+            rec.log(f"{p}/circle", rr.LineStrips3D([circle_points(cx, cy, sim.circle_radius)], colors=[col],
                                                    radii=0.005), static=True)
             rec.log(f"{p}/pose", rr.Arrows3D(vectors=[[0.35, 0, 0]], colors=[col], labels=[n], radii=0.025),
-                    rr.LineStrips3D([_circle(0.0, 0.0, body)], colors=[col], radii=0.01), static=True)
+                    rr.LineStrips3D([circle_points(0.0, 0.0, body)], colors=[col], radii=0.01), static=True)
             s = sim.start_poses[n]
-            rec.log(f"{p}/map", _transform(s[0], s[1], s[2]), static=True)
-            rec.log(f"{p}/map/slam_pose", rr.Arrows3D(vectors=[[0.3, 0, 0]], colors=[_dim(col)], radii=0.02,
+            rec.log(f"{p}/map", rr_transform(s[0], s[1], s[2]), static=True)
+            rec.log(f"{p}/map/slam_pose", rr.Arrows3D(vectors=[[0.3, 0, 0]], colors=[dim_colour(col)], radii=0.02,
                                                       labels=[f"{n} (SLAM)"]), static=True)
-            c_true = _to_frame(sim.center_world, s)
+            c_true = to_frame(sim.center_world, s)
             self._log_center(n, sim.centers_given[n], c_true)
 
     def _log_center(self, robot: str, given, true) -> None:
         err = math.hypot(given[0] - true[0], given[1] - true[1])
         self.centers_logged[robot] = tuple(given)
         label = f"{robot}'s center (error {err * 100:.1f} cm)"
-        self.rec.log(f"world/robots/{_part(robot)}/map/center_given",
+        self.rec.log(f"world/robots/{entity_part(robot)}/map/center_given",
                      rr.Points3D([[given[0], given[1], SCAN_Z]], radii=0.05, colors=[self.colours[robot]],
                                  labels=[label]), static=True)
-        gx, gy = _from_frame(given, self.start_poses[robot])
-        self.rec.log(f"world/robots/{_part(robot)}/centers/given",
+        gx, gy = from_frame(given, self.start_poses[robot])
+        self.rec.log(f"world/robots/{entity_part(robot)}/centers/given",
                      rr.Points3D([[gx, gy, SCAN_Z]], radii=0.05, colors=[self.colours[robot]], labels=[label]),
                      static=True)
 
@@ -495,14 +504,14 @@ class RerunRecorder(Observer):
         placed, strips, labels = [], [], []
         for k in mates:
             tx, ty = top.translation(k)
-            px, py = _from_frame((cx + tx, cy + ty), pose)
-            qx, qy = _from_frame(self.centers_given[k], self.start_poses[k])
+            px, py = from_frame((cx + tx, cy + ty), pose)
+            qx, qy = from_frame(self.centers_given[k], self.start_poses[k])
             placed.append([px, py, SCAN_Z])
             strips.append([[px, py, SCAN_Z], [qx, qy, SCAN_Z]])
             err = c.translation_error_m.get(k)
             labels.append(f"{k}'s center placed by {n}" + ("" if err is None else f" (off {100 * err:.1f} cm)"))
-        colours = [self.colours.get(k, _GREY) for k in mates]
-        base = f"world/robots/{_part(n)}/centers"
+        colours = [self.colours.get(k, GREY) for k in mates]
+        base = f"world/robots/{entity_part(n)}/centers"
         self.rec.log(f"{base}/placed", rr.Points3D(placed, radii=0.035, colors=colours, labels=labels))
         self.rec.log(f"{base}/placed_error", rr.LineStrips3D(strips, colors=colours, radii=0.008))
 
@@ -514,7 +523,7 @@ class RerunRecorder(Observer):
         w[:, 0] = x + c * pts[:, 0] - s * pts[:, 1]
         w[:, 1] = y + s * pts[:, 0] + c * pts[:, 1]
         w[:, 2] = SCAN_Z
-        p, col = f"world/robots/{_part(k.name)}", self.colours[k.name]
+        p, col = f"world/robots/{entity_part(k.name)}", self.colours[k.name]
         self.rec.log(f"{p}/scan", rr.Points3D(w, colors=[col], radii=0.02))
         if rays:
             ends = w[::RAY_BEAM_STRIDE]
@@ -526,7 +535,7 @@ class RerunRecorder(Observer):
     def _plot_cycle(self, c: MergeCycle) -> None:
         """One entity per plot, one series per value (batched: one rr.log per plot and cycle)."""
         n, res, cfg = c.robot, c.result, self.merger_cfg
-        base = f"plots/{_part(n)}"
+        base = f"plots/{entity_part(n)}"
         omega = []
         for o in res.orders:
             for k, (moving, al) in enumerate(o.steps, 1):
@@ -540,23 +549,23 @@ class RerunRecorder(Observer):
             self._series(f"{base}/omega", omega)
         top, whole = res.top, cfg.verification == "whole_map"
         self._series(f"{base}/nu", [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in top.checks.items()]
-                     + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, _GREY)])
+                     + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, GREY)])
         self._series(f"{base}/support", [(f"support {k}", v.support, None) for k, v in top.checks.items()]
-                     + [("min_support", cfg.min_support, _GREY)])
+                     + [("min_support", cfg.min_support, GREY)])
         if res.accepted:
             self._series(f"{base}/angle_error_deg", [(f"{m} angle error (°)", e, self.colours.get(m))
                                                      for m, e in c.angle_error_deg.items() if m != n]
-                         + [(f"{m} vs SLAM frames (°)", e, _dim(self.colours.get(m, _GREY)))
+                         + [(f"{m} vs SLAM frames (°)", e, dim_colour(self.colours.get(m, GREY)))
                             for m, e in c.est_angle_error_deg.items() if m != n])
             t_errs = [(f"{m} translation error (m)", e, self.colours.get(m))
                       for m, e in c.translation_error_m.items() if m != n] \
-                + [(f"{m} vs SLAM frames (m)", e, _dim(self.colours.get(m, _GREY)))
+                + [(f"{m} vs SLAM frames (m)", e, dim_colour(self.colours.get(m, GREY)))
                    for m, e in c.est_translation_error_m.items() if m != n]
             if t_errs:
                 self._series(f"{base}/translation_error_m", t_errs)
         if not c.adopted_from:
             self._series(f"{base}/cycle_ms", [(f"{n} merge cycle (ms)", res.cost_ms, self.colours[n])])
-        self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, _GREY),
+        self._series(f"{base}/teammates_placed", [("teammates placed correctly", c.teammates_placed, GREY),
                                                   ("maps merged", len(res.top.theta_deg), None),
                                                   ("ambiguous pairs not used",
                                                    sum(not a.used for a in res.ambiguous), None)])
@@ -566,12 +575,12 @@ class RerunRecorder(Observer):
         self._at(c.t, step)
         self.merged_pending.pop(n, None)
         self.merged_next_s[n] = now + self.merged_period_s
-        self.rec.log(f"world/robots/{_part(n)}/map/merged", _grid_map(res.merged, 0.0))
+        self.rec.log(f"world/robots/{entity_part(n)}/map/merged", rr_grid_map(res.merged, 0.0))
         names = [n] + [k for k in res.layers if k != n]
         layers = [res.layers[k].states for k in names]
         rs, cs = known_window(layers)
         rgb = overlay_fast([st[rs, cs] for st in layers], names)
-        self.rec.log(f"merge/{_part(n)}/overlay", rr.Image(np.ascontiguousarray(np.flipud(rgb))))
+        self.rec.log(f"merge/{entity_part(n)}/overlay", rr.Image(np.ascontiguousarray(np.flipud(rgb))))
 
     def _flush_poses(self) -> None:
         self.pose_batch_t0 = None
@@ -581,8 +590,8 @@ class RerunRecorder(Observer):
                 continue
             a = np.array(rows, np.float64)
             idx = [rr.TimeColumn("sim_time", duration=a[:, 0]), rr.TimeColumn("step", sequence=a[:, 1].astype(np.int64))]
-            for path, (x, y, yaw) in ((f"world/robots/{_part(n)}/pose", a[:, 2:5].T),
-                                      (f"world/robots/{_part(n)}/map/slam_pose", a[:, 5:8].T)):
+            for path, (x, y, yaw) in ((f"world/robots/{entity_part(n)}/pose", a[:, 2:5].T),
+                                      (f"world/robots/{entity_part(n)}/map/slam_pose", a[:, 5:8].T)):
                 tr = np.stack([x, y, np.zeros_like(x)], axis=1)
                 q = np.stack([np.zeros_like(x), np.zeros_like(x), np.sin(yaw / 2), np.cos(yaw / 2)], axis=1)
                 rr.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(translation=tr, quaternion=q),
@@ -597,11 +606,11 @@ class RerunRecorder(Observer):
         tx, ty, tyaw = c * dx + s * dy, -s * dx + c * dy, a[:, 4] - syaw
         cm = 100.0 * np.hypot(a[:, 5] - tx, a[:, 6] - ty)
         deg = np.abs(np.degrees((a[:, 7] - tyaw + np.pi) % (2.0 * np.pi) - np.pi))
-        path = f"plots/{_part(n)}/slam_pose_error"
+        path = f"plots/{entity_part(n)}/slam_pose_error"
         if path not in self.series:
             self.series[path] = ("position error (cm)", "yaw error (°)")
             self.rec.log(path, rr.SeriesLines(names=list(self.series[path]),
-                                              colors=[self.colours[n], _dim(self.colours[n])]), static=True)
+                                              colors=[self.colours[n], dim_colour(self.colours[n])]), static=True)
         rr.send_columns(path, indexes=idx, columns=rr.Scalars.columns(scalars=np.stack([cm, deg], axis=1)),
                         recording=self.rec)
 
@@ -610,293 +619,3 @@ class RerunRecorder(Observer):
             step, c = self.merged_pending[n]
             if t + 1e-9 >= self.merged_next_s[n]:
                 self._log_merged(c, step, t)
-
-
-# --- blueprint ---------------------------------------------------------------------------------------
-def default_blueprint(names, center_world, centers_given) -> rrb.Blueprint:
-    """World (top-down) with robots and scans, the local maps, the merged maps and overlays, plots, events."""
-    cx, cy = center_world
-    parts = [_part(n) for n in names]
-    robots = [(n, _part(n)) for n in names]
-    world = rrb.Spatial3DView(
-        name="World (top-down, y up)", origin="/world",
-        # the maps have views of their own: drawn here (opaque in the 0.41 web viewer, whatever the
-        # opacity) they hid the world under three rotated rectangles of unknown cells
-        # center_given is drawn there as centers/given (in W), once
-        contents=["+ $origin/**", *[f"- /world/robots/{p}/map/{m}" for p in parts
-                                    for m in ("merged", "local", "center_given")]],
-        eye_controls=_top_down(cx, cy, 11.0))
-
-    def map_view(n, p, what, title):
-        gx, gy = centers_given[n]
-        return rrb.Spatial3DView(
-            name=f"{n}: {title}", origin=f"/world/robots/{p}/map",
-            contents=[f"$origin/{what}", "$origin/slam_pose", "$origin/center_given", f"/world/robots/{p}/scan"],
-            eye_controls=_top_down(gx, gy, 11.0))
-
-    local_maps = rrb.Horizontal(*[map_view(n, p, "local", "local map") for n, p in robots])
-    merged = rrb.Vertical(*[rrb.Tabs(
-        rrb.Spatial2DView(name=f"{n}: overlay of aligned maps", origin=f"/merge/{p}"),
-        map_view(n, p, "merged", "merged map"), name=n) for n, p in robots])
-
-    def plots(n, p):
-        ts = [rrb.TimeSeriesView(name=f"{n}: {title}", origin=f"/plots/{p}/{what}")
-              for what, title in (("omega", "ω̃ of each alignment step, every order"),
-                                  ("nu", "ν of the top hypothesis"), ("support", "support (agr̃ + dis)"),
-                                  ("angle_error_deg", "accepted angle error vs truth (°)"),
-                                  ("translation_error_m", "accepted translation error vs truth (m)"))]
-        ts.append(rrb.TimeSeriesView(name=f"{n}: teammates correctly placed", origin=f"/plots/{p}/teammates_placed"))
-        ts.append(rrb.TimeSeriesView(name=f"{n}: SLAM pose error (cm, °)", origin=f"/plots/{p}/slam_pose_error"))
-        ts.append(rrb.TimeSeriesView(name=f"{n}: merge cycle cost (ms)", origin=f"/plots/{p}/cycle_ms"))
-        return rrb.Vertical(*ts, name=n)
-
-    right = rrb.Vertical(rrb.Tabs(*[plots(n, p) for n, p in robots]),
-                         rrb.TextLogView(name="Events", origin="/events"), row_shares=[3, 2])
-    return rrb.Blueprint(
-        rrb.Horizontal(rrb.Vertical(world, local_maps, row_shares=[3, 2]), merged, right, column_shares=[3, 2, 3]),
-        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline="sim_time"))
-
-
-def _top_down(x: float, y: float, height: float) -> rrb.EyeControls3D:
-    return rrb.EyeControls3D(position=[x, y, height], look_target=[x, y, 0.0], eye_up=[0.0, 1.0, 0.0])
-
-
-# --- viewing and reading recordings ------------------------------------------------------------------
-def rerun_executable() -> str:
-    """The native ``rerun`` viewer/CLI shipped in the rerun-sdk wheel (package ``rerun_cli``)."""
-    exe = "rerun.exe" if sys.platform.startswith("win") else "rerun"
-    candidates = []
-    try:
-        import rerun_cli
-
-        d = Path(rerun_cli.__file__).parent
-        candidates += [d / "Rerun.app" / "Contents" / "MacOS" / "Rerun", d / exe]
-    except ImportError:  # pragma: no cover - rerun-sdk always ships it
-        pass
-    candidates += [Path(sys.executable).parent / exe]
-    for c in candidates:
-        if c.is_file():
-            return str(c)
-    found = shutil.which("rerun")
-    if found:
-        return found
-    raise RuntimeError("the rerun viewer executable was not found; install rerun-sdk (pip install rerun-sdk)")
-
-
-def has_display() -> bool:
-    """Whether a native window can open: on Linux/BSD, ``$DISPLAY`` or ``$WAYLAND_DISPLAY`` is set."""
-    if sys.platform.startswith(("win", "darwin")):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def check_rrd(path) -> Path:
-    """``path`` as a Path if it is a readable rerun recording, else ValueError naming the file and problem."""
-    p = Path(path)
-    if not p.exists():
-        raise ValueError(f"{p}: no such file")
-    if not p.is_file():
-        raise ValueError(f"{p}: not a file")
-    if p.suffix != ".rrd":
-        raise ValueError(f"{p}: not a rerun recording (expected a .rrd file)")
-    with p.open("rb") as f:
-        head = f.read(4)
-    if not head.startswith(b"RRF"):
-        raise ValueError(f"{p}: not a rerun recording ({'empty file' if not head else 'unknown header'})")
-    return p
-
-
-def view(path, *, web: bool = False, web_port: int = 9090, grpc_port: int = 9876) -> int:
-    """Open a recorded run in the rerun viewer; returns an exit code (``circsim view RUN.rrd [--web]``).
-
-    Native viewer by default. Without a display (Linux without ``$DISPLAY``/``$WAYLAND_DISPLAY``) it prints
-    one line offering the web viewer and returns 1. ``web=True`` serves the web viewer bound to 127.0.0.1
-    (``rerun --serve-web RUN.rrd --bind 127.0.0.1``; browse http://127.0.0.1:9090) until Ctrl-C (returns 130).
-    Raises ValueError for a missing file or one that is not an .rrd recording.
-    """
-    p = check_rrd(path)
-    exe = rerun_executable()
-    if web:
-        print(f"circsim view: serving {p} at http://127.0.0.1:{web_port} (Ctrl-C to stop)", flush=True)
-        return _run([exe, "--serve-web", str(p), "--bind", "127.0.0.1", "--web-viewer-port", str(web_port),
-                     "--port", str(grpc_port)])
-    if not has_display():
-        print(f"circsim view: no display ($DISPLAY/$WAYLAND_DISPLAY unset); use the web viewer: "
-              f"circsim view {p} --web  (= rerun --serve-web {p} --bind 127.0.0.1, then open http://127.0.0.1:9090)")
-        return 1
-    return _run([exe, str(p)])
-
-
-def _run(cmd: list[str]) -> int:
-    proc = subprocess.Popen(cmd)
-    try:
-        return proc.wait()
-    except KeyboardInterrupt:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        return 130
-
-
-def read_recording(path) -> dict[str, list[dict]]:
-    """Every logged row of a recording, by entity path, read with rerun's own reader (``rerun.chunk``).
-
-    Returns ``{entity_path: [row, ...]}`` with rerun's paths (leading ``/``, e.g. ``/events/Lyon``). A row
-    is a dict: ``static`` (bool), ``sim_time`` (float s or None), ``step`` (int or None) and one entry per
-    component, keyed ``"Archetype:field"`` (``"Scalars:scalars"``, ``"TextLog:text"``, ...), holding the
-    logged batch as a list (blobs such as ``GridMap:data`` as uint8 arrays). Rows are in (static, step,
-    sim_time) order. Works on files without a footer too (e.g. a killed process).
-    """
-    from rerun.chunk import RrdReader
-
-    p = check_rrd(path)
-    out: dict[str, list[dict]] = {}
-    for chunk in RrdReader(str(p)).stream():
-        rb = chunk.to_record_batch()
-        n = rb.num_rows
-        rows = [{"static": chunk.is_static, "sim_time": None, "step": None} for _ in range(n)]
-        for name, col in zip(rb.schema.names, rb.columns, strict=True):
-            if name in ("rerun.controls.RowId", "log_time"):
-                continue
-            if name == "sim_time":
-                vals = [None if v is None else v / 1e9 for v in col.cast("int64").to_pylist()]
-            else:
-                vals = _column_values(col)
-            for r, v in zip(rows, vals, strict=True):
-                r[name] = v
-        out.setdefault(chunk.entity_path, []).extend(rows)
-    for rows in out.values():
-        rows.sort(key=lambda r: (not r["static"], r["step"] if r["step"] is not None else -1,
-                                 r["sim_time"] if r["sim_time"] is not None else -1.0))
-    return out
-
-
-def _column_values(col) -> list:
-    t = col.type
-    is_blob = (hasattr(t, "value_type") and hasattr(t.value_type, "value_type")
-               and str(t.value_type.value_type) == "uint8")
-    if not is_blob:
-        return col.to_pylist()
-    return [None if not row.is_valid else [np.asarray(b.values.to_numpy(zero_copy_only=False), np.uint8)
-                                           for b in row.values] for row in col]
-
-
-# --- helpers -------------------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=16)
-def _overlay_lut(names: tuple[str, ...]) -> np.ndarray:
-    """RGB of every combination of cell states (3**N, 3), computed by :func:`merger.io.overlay.overlay_rgb`."""
-    combos = np.array(list(itertools.product(range(3), repeat=len(names))), np.uint8)
-    return overlay_rgb([combos[:, k, None] for k in range(len(names))], list(names))[:, 0]
-
-
-def overlay_fast(layers: list[np.ndarray], names: list[str]) -> np.ndarray:
-    """Same image as :func:`merger.io.overlay.overlay_rgb` (which it tabulates), ~20x faster for N <= 5 maps.
-
-    A cell's colour depends only on the states of that cell in the N layers, so the 3**N colours are
-    computed once by ``overlay_rgb`` itself and looked up.
-    """
-    if len(names) > 5:
-        return overlay_rgb(layers, names)
-    code = np.array(layers[0], np.uint8)  # 3**5 = 243 codes fit in uint8
-    for states in layers[1:]:
-        code *= 3
-        code += states
-    return np.take(_overlay_lut(tuple(names)), code, axis=0)
-
-
-def _part(name: str) -> str:
-    """A robot name as one entity-path part (letters, digits, '-', '_')."""
-    return re.sub(r"[^A-Za-z0-9_-]", "_", str(name))
-
-
-def _transform(x: float, y: float, yaw: float) -> rr.Transform3D:
-    return rr.Transform3D(translation=[float(x), float(y), 0.0],
-                          rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=float(yaw)))
-
-
-def known_window(layers: list[np.ndarray], margin: int = CROP_MARGIN_CELLS) -> tuple[slice, slice]:
-    """Rows and columns of the smallest window holding every known cell of ``layers`` (same shape),
-    widened by ``margin`` cells and clipped to the grid; the whole grid when nothing is known.
-
-    Logged maps and overlays are cropped to it: a 16 m map of a 7 m room is mostly unknown, which the
-    viewer draws opaque, and the overlay's room would be a small patch in a grey image."""
-    known = np.zeros(layers[0].shape, bool)
-    for states in layers:
-        known |= states != 0
-    h, w = known.shape
-    box = known_bounds(known)
-    if box is None:
-        return slice(0, h), slice(0, w)
-    r0, r1, c0, c1 = box
-    return slice(max(r0 - margin, 0), min(r1 + margin, h)), slice(max(c0 - margin, 0), min(c1 + margin, w))
-
-
-def _grid_map(grid, z: float) -> rr.GridMap:
-    """A ROS-ordered occupancy grid (row 0 = lowest y) as a GridMap with the rviz colour map, cropped
-    to its known cells (:func:`known_window`; the translation is the window's corner)."""
-    rs, cs = known_window([grid.states])
-    ros = grid.to_ros()[rs, cs]
-    data = np.ascontiguousarray(np.flipud(ros))  # GridMap draws its first data row at max y
-    x0 = grid.origin[0] + cs.start * grid.resolution
-    y0 = grid.origin[1] + rs.start * grid.resolution
-    return rr.GridMap(data=data.view(np.uint8).tobytes(),
-                      format=rr.components.ImageFormat(width=ros.shape[1], height=ros.shape[0], color_model="L",
-                                                       channel_datatype="U8"),
-                      cell_size=grid.resolution, translation=[x0, y0, z],
-                      colormap=rr.components.Colormap.RvizMap)
-
-
-def _circle(cx: float, cy: float, r: float, n: int = 96) -> np.ndarray:
-    a = np.linspace(0.0, 2.0 * math.pi, n + 1)
-    return np.stack([cx + r * np.cos(a), cy + r * np.sin(a), np.zeros_like(a)], axis=1)
-
-
-def _to_frame(xy, pose) -> tuple[float, float]:
-    """World point ``xy`` in the frame of ``pose`` (x, y, yaw)."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    dx, dy = xy[0] - pose[0], xy[1] - pose[1]
-    return (c * dx + s * dy, -s * dx + c * dy)
-
-
-def _from_frame(xy, pose) -> tuple[float, float]:
-    """Point ``xy`` of the frame of ``pose`` (x, y, yaw) in the world frame (inverse of :func:`_to_frame`)."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return (pose[0] + c * xy[0] - s * xy[1], pose[1] + s * xy[0] + c * xy[1])
-
-
-def _dim(col) -> tuple[int, int, int]:
-    return tuple(int(0.5 * v + 0.5 * 255) for v in col)
-
-
-def _split_geometry(sc, geo):
-    """Static geometry as line strips: walls (the room), pillars, and the remaining objects."""
-    walls = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in sc.world.room.wall_segments()]
-    wall_keys = {_key(s) for s in sc.world.room.wall_segments()} | {_key((c, d, a, b)) for a, b, c, d
-                                                                     in sc.world.room.wall_segments()}
-    pillar_keys = {_key((*p.center, p.radius)) for p in sc.world.pillars}
-    pillars = [_circle(p.center[0], p.center[1], p.radius, 48) for p in sc.world.pillars]
-    objects = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in geo.segments
-               if _key((a, b, c, d)) not in wall_keys]
-    objects += [_circle(x, y, r, 24) for x, y, r in geo.circles if _key((x, y, r)) not in pillar_keys]
-    return walls, pillars, objects
-
-
-def _key(v) -> tuple:
-    return tuple(round(float(x), 6) for x in v)
-
-
-def _scenario_dict(sc) -> dict:
-    from ..config.scenario import scenario_to_dict
-
-    return scenario_to_dict(sc)
-
-
-def _json_block(d) -> str:
-    """``d`` as a Markdown JSON block, its floats written as in the run's JSON file (:mod:`circsim.record.jsonout`)."""
-    from . import jsonout
-
-    return "```json\n" + jsonout.dumps(d, indent=2, default=str) + "\n```\n"

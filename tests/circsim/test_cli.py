@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from circsim.cli import main
-from circsim.record.rerun import rerun_executable
+from circsim.record.viewer import rerun_executable
 from merger.search import angle_diff_deg
 from tests.subproc import sigint_default, wait_for
 

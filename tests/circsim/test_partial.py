@@ -85,7 +85,7 @@ def test_recording_shows_pair_merges_and_teammates_placed(tmp_path):
     import json
 
     from circsim.cli import main
-    from circsim.record.rerun import read_recording
+    from circsim.record.viewer import read_recording
 
     rrd, js = tmp_path / "lossy.rrd", tmp_path / "lossy.json"
     assert main(["run", "scene1", "--set", "duration_s=10", "--set", "network.loss=0.9", "--set",

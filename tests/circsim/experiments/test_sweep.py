@@ -1,4 +1,5 @@
-"""Sweeps: grid parsing and validation, process pool vs dask, resume, tidy rows (circsim.experiments.sweep)."""
+"""Sweeps: grid parsing and validation, process pool vs dask, resume, tidy rows (circsim.experiments.plan, sweep,
+store, tables)."""
 
 import json
 
@@ -7,16 +8,10 @@ import pytest
 from circsim.cli import main
 from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.experiments.offline import default_search_method
-from circsim.experiments.sweep import (
-    RUNS_JSONL,
-    SweepError,
-    execute,
-    parse_grid,
-    plan,
-    prepare_out,
-    read_rows,
-    sweep_rows,
-)
+from circsim.experiments.plan import RUNS_JSONL, SweepError, parse_grid, plan
+from circsim.experiments.store import prepare_out, read_rows
+from circsim.experiments.sweep import execute
+from circsim.experiments.tables import sweep_rows
 
 # short runs with a small ROI: the machinery is under test here, not the merger
 SETS = [f"merger.method={default_search_method()}", "merger.roi_m=3", "duration_s=3"]
@@ -124,7 +119,7 @@ def test_sweep_error_is_a_value_error():
 
 
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
-    from circsim.experiments.sweep import ERRORS_JSONL, RunTask
+    from circsim.experiments.plan import ERRORS_JSONL, RunTask
 
     good = plan(base(), [], seeds=1)[0]
     bad = RunTask({"name": "broken", "robots": {"speed_mps": -1}}, "broken.yaml", (), 0, "broken-key")

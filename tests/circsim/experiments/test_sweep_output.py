@@ -2,8 +2,9 @@
 
 import re
 
+from circsim.experiments.plan import parse_grid
 from circsim.experiments.plots import ANGLE_TICKS, PANELS, sweep_figure
-from circsim.experiments.sweep import format_summary, parse_grid, summarize
+from circsim.experiments.tables import format_summary, summarize
 
 
 def rows(errors=(0.0, 0.1), seeds=(1, 2, 3), angle=lambda e, s: 0.3 + 2 * e * s):

@@ -19,7 +19,9 @@ from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, RobotTick
 from circsim.metrics import RobotMetrics, RunResult, judge_placement
 from circsim.record import rerun as record
-from circsim.record.rerun import RerunRecorder, read_recording, rerun_executable, view
+from circsim.record.entities import from_frame, known_window, overlay_fast, to_frame
+from circsim.record.rerun import RerunRecorder
+from circsim.record.viewer import read_recording, rerun_executable, view
 from circsim.sim import truth_translation
 from circsim.world.laser import scan as laser_scan
 from circsim.world.motion import trajectories
@@ -93,7 +95,7 @@ def fabricated(tmp_path_factory):
     _, names, views, truth_onto_lyon = three_views(3)
     assert names == NAMES
     maps = {n: v for n, v in zip(names, views, strict=True)}
-    centers = {n: record._to_frame(sc.world.center, start[n]) for n in NAMES}
+    centers = {n: to_frame(sc.world.center, start[n]) for n in NAMES}
     given = {n: (c[0] + 0.03, c[1] - 0.04) for n, c in centers.items()}  # a 5 cm center error
     sim = SimpleNamespace(scenario=sc, world=world, robot_names=list(NAMES), start_poses=start,
                           centers_given=given, center_world=tuple(sc.world.center),
@@ -112,7 +114,7 @@ def fabricated(tmp_path_factory):
         ticks = []
         for n, p in poses.items():
             s = laser_scan(world, n, p, rng, config=sc.laser, stamp=t)
-            x, y = record._to_frame(p[:2], start[n])
+            x, y = to_frame(p[:2], start[n])
             est = (x + 0.01 * k, y, p[2] - start[n][2] + 0.001 * k)  # a drifting SLAM estimate in M_i
             ticks.append(RobotTick(n, tuple(p), est, (0.0, 0.0, 0.0), 0.0, s))
         rec.on_tick(t, k, ticks)
@@ -233,7 +235,7 @@ def test_local_maps_at_each_publication_in_ros_order(fabricated):
         given_w = rec[f"/world/robots/{n}/centers/given"][0]  # the same point, in W
         assert given_w["static"] and given_w["Points3D:labels"][0] == label
         np.testing.assert_allclose(given_w["Points3D:positions"][0][:2],
-                                   record._from_frame(fabricated.sim.centers_given[n], s), atol=1e-5)
+                                   from_frame(fabricated.sim.centers_given[n], s), atol=1e-5)
     assert sum("published map" in x for n in NAMES for x in texts(rec, f"/events/{n}")) == 6
     assert sum("received" in x and "delay" in x for n in NAMES for x in texts(rec, f"/events/{n}")) == 6
 
@@ -263,12 +265,12 @@ def test_merge_events_plots_and_throttled_merged_maps(fabricated):
         assert [r["sim_time"] for r in placed] == pytest.approx([c.t for c in mine])
         s_i, g_i, top = fabricated.sim.start_poses[n], fabricated.sim.centers_given[n], mine[-1].result.top
         mates = [m for m in top.theta_deg if m != n]
-        want = [record._from_frame((g_i[0] + top.translation(m)[0], g_i[1] + top.translation(m)[1]), s_i)
+        want = [from_frame((g_i[0] + top.translation(m)[0], g_i[1] + top.translation(m)[1]), s_i)
                 for m in mates]
         np.testing.assert_allclose(np.array(placed[-1]["Points3D:positions"])[:, :2], want, atol=1e-5)
         strips = rec[f"/world/robots/{n}/centers/placed_error"][-1]["LineStrips3D:strips"]
         sim = fabricated.sim
-        ends = [record._from_frame(sim.centers_given[m], sim.start_poses[m]) for m in mates]
+        ends = [from_frame(sim.centers_given[m], sim.start_poses[m]) for m in mates]
         np.testing.assert_allclose([np.array(st)[1, :2] for st in strips], ends, atol=1e-5)
         ms = series(rec, f"/plots/{n}/cycle_ms")[f"{n} merge cycle (ms)"]
         assert [v for _, v in ms] == pytest.approx([c.result.cost_ms for c in cycles if c.robot == n])
@@ -289,7 +291,7 @@ def test_merge_events_plots_and_throttled_merged_maps(fabricated):
     img = np.flipud(ov["Image:buffer"][0].reshape(f["height"], f["width"], 3))
     names = ["Lyon", "Auckland", "Nevers"]
     full = overlay_rgb([last.result.layers[k].states for k in names], names)
-    rs, cs = record.known_window([last.result.layers[k].states for k in names])
+    rs, cs = known_window([last.result.layers[k].states for k in names])
     np.testing.assert_array_equal(img, full[rs, cs])
     # the crop keeps every cell some map knows (every non-grey pixel of the full overlay)
     grey = np.all(full == (128, 128, 128), axis=2)
@@ -305,7 +307,7 @@ def test_overlay_fast_equals_overlay_rgb():
     for n in (2, 3, 4):
         layers = [rng.integers(0, 3, (37, 53)).astype(np.uint8) for _ in range(n)]
         names = ["Lyon", "Nevers", "Auckland", "Paris"][:n]
-        np.testing.assert_array_equal(record.overlay_fast(layers, names), overlay_rgb(layers, names))
+        np.testing.assert_array_equal(overlay_fast(layers, names), overlay_rgb(layers, names))
 
 
 # --- whole runs ---------------------------------------------------------------------------------------
@@ -489,7 +491,7 @@ def test_cli_view_of_a_missing_file_is_a_user_error(tmp_path, capsys):
 
 def test_view_web_serves_on_localhost_until_ctrl_c(fabricated):
     web, grpc = _free_port(), _free_port()
-    code = (f"import sys; from circsim.record.rerun import view; "
+    code = (f"import sys; from circsim.record.viewer import view; "
             f"sys.exit(view({str(fabricated.path)!r}, web=True, web_port={web}, grpc_port={grpc}))")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             text=True, preexec_fn=sigint_default)

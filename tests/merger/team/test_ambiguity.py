@@ -133,8 +133,9 @@ def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
     it is unchanged), read back from the .rrd."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.events import MergeCycle
-    from circsim.record import rerun as record
-    from circsim.record.rerun import RerunRecorder, read_recording
+    from circsim.record.entities import to_frame
+    from circsim.record.rerun import RerunRecorder
+    from circsim.record.viewer import read_recording
     from circsim.world.motion import trajectories
     from circsim.world.world import World
 
@@ -143,7 +144,7 @@ def test_the_recording_shows_each_ambiguous_pair_once(tmp_path):
     trajs = trajectories(sc)
     start = {n: trajs[n].start_pose() for n in names}
     sim = SimpleNamespace(scenario=sc, world=World.from_scenario(sc), robot_names=names, start_poses=start,
-                          centers_given={n: record._to_frame(sc.world.center, start[n]) for n in names},
+                          centers_given={n: to_frame(sc.world.center, start[n]) for n in names},
                           center_world=tuple(sc.world.center), circle_radius=sc.robots.radius_m, seed=sc.seed)
     c = window_case(0, "symmetric", roi_m=(8.0, 8.0), window_m=(0.5, 0.5))
     me, other = sorted(names[:2])  # Auckland, Lyon: the merging robot's map is the reference

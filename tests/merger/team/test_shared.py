@@ -182,7 +182,7 @@ def test_sharing_end_to_end_on_scene1(tmp_path):
     from circsim.cli import main
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.record.jsonout import rounded
-    from circsim.record.rerun import read_recording
+    from circsim.record.viewer import read_recording
     from circsim.sim import Simulation
 
     def run(share):

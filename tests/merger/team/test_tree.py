@@ -257,7 +257,7 @@ def test_the_scan_matching_slams_seven_robots_merge_without_false_merges():
 
 def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
     from circsim.cli import main
-    from circsim.record.rerun import read_recording
+    from circsim.record.viewer import read_recording
 
     rrd = tmp_path / "hall4.rrd"
     assert main(["run", "hall4", "--set", "duration_s=10", "--set", "merger.method=fast", "--rrd", str(rrd),

@@ -1,7 +1,13 @@
 """Command line: ``merger align``, ``merger merge`` and ``merger demo``.
 
 A user's mistake (bad file, bad argument) prints one line ``merger: error: ...`` and exits with 2, before
-any work and with nothing written.
+any work and with nothing written. The limits it checks are :mod:`merger.limits` (shared with circsim);
+the file formats are :mod:`merger.io`.
+
+Why this module is longer than ~400 lines: it is the whole command line — the parser, the argument
+checks the three commands share (centers, ROI, merge options, outputs) and the three commands, each a
+short function over the library's API. Split it into a ``merger/cli/`` package when a fourth command
+comes; until then one file shows every option and its check together.
 """
 
 from __future__ import annotations

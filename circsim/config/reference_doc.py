@@ -69,7 +69,7 @@ def item_defaults(check) -> dict:
     out = {k: "(required)" for k in getattr(check, "required", ())}
     for f in dataclasses.fields(check.cls) if dataclasses.is_dataclass(getattr(check, "cls", None)) else ():
         if f.default is not dataclasses.MISSING:
-            out.setdefault(f.name, S._plain(f.default))
+            out.setdefault(f.name, S.plain_value(f.default))
     return out
 
 
@@ -94,21 +94,21 @@ def _rows(schema: dict, prefix: list[str], defaults, out: list) -> None:
 
 def _sections():
     """(section title, key prefix, schema) in the order of a scenario file."""
-    world = {k: v for k, v in S._WORLD.items() if k != "room"}
+    world = {k: v for k, v in S.WORLD_SCHEMA.items() if k != "room"}
     return [
         ("Top level", [], {"name": S.string, "description": S.string, "seed": S.integer(ge=0),
-                           "duration_s": S._POS, "dt_s": S._POS}),
+                           "duration_s": S.POSITIVE, "dt_s": S.POSITIVE}),
         ("world", ["world"], world),
-        ("world.room", ["world", "room"], S._ROOM),
+        ("world.room", ["world", "room"], S.ROOM_SCHEMA),
         *[(f"world.objects[] with type: {kind}", ["world", "objects[]"], check)
-          for kind, check in S._OBJECTS.items()],
-        ("robots", ["robots"], S._ROBOTS),
-        ("laser", ["laser"], S._LASER.schema),
-        ("slam", ["slam"], S._SLAM.schema),
-        ("center_error", ["center_error"], {"magnitude_m": S._NONNEG}),
-        ("network", ["network"], S._NETWORK.schema),
-        ("merger", ["merger"], S._MERGER.schema),
-        ("output", ["output"], S._OUTPUT.schema),
+          for kind, check in S.OBJECT_SCHEMAS.items()],
+        ("robots", ["robots"], S.ROBOTS_SCHEMA),
+        ("laser", ["laser"], S.LASER_SCHEMA.schema),
+        ("slam", ["slam"], S.SLAM_SCHEMA.schema),
+        ("center_error", ["center_error"], {"magnitude_m": S.NON_NEGATIVE}),
+        ("network", ["network"], S.NETWORK_SCHEMA.schema),
+        ("merger", ["merger"], S.MERGER_SCHEMA.schema),
+        ("output", ["output"], S.OUTPUT_SCHEMA.schema),
     ]
 
 

@@ -230,7 +230,7 @@ def load_scenario(path) -> Scenario:
             from None
     if data is None:  # an empty or comment-only file would silently run the default scene
         raise ScenarioError(f"{label}: empty scenario (expected a mapping of scenario sections: "
-                            f"{', '.join(_TOP)})")
+                            f"{', '.join(TOP_KEYS)})")
     return scenario_from_dict(data, source=label, default_name=path.stem)
 
 
@@ -246,7 +246,7 @@ def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenar
 
 def scenario_to_dict(sc: Scenario) -> dict[str, Any]:
     """The fully resolved scenario as plain JSON-able data (valid input to :func:`scenario_from_dict`)."""
-    return _plain(sc)
+    return plain_value(sc)
 
 
 def bundled_scenarios() -> dict[str, Path]:
@@ -255,12 +255,12 @@ def bundled_scenarios() -> dict[str, Path]:
 
 
 # --- validation -------------------------------------------------------------------------------------
-_POS, _NONNEG = number(gt=0), number(ge=0)
-_OBJECTS = {
-    "chair": section(Chair, {"type": string, "center": vec2(), "yaw_deg": number(), "leg_spacing_m": _POS,
-                             "leg_radius_m": _POS}, required=("center",)),
+POSITIVE, NON_NEGATIVE = number(gt=0), number(ge=0)
+OBJECT_SCHEMAS = {
+    "chair": section(Chair, {"type": string, "center": vec2(), "yaw_deg": number(), "leg_spacing_m": POSITIVE,
+                             "leg_radius_m": POSITIVE}, required=("center",)),
     "overturned_chair": section(OverturnedChair, {"type": string, "center": vec2(), "yaw_deg": number(),
-                                                  "seat_m": _POS, "back_m": _POS}, required=("center",)),
+                                                  "seat_m": POSITIVE, "back_m": POSITIVE}, required=("center",)),
     "box": section(Box, {"type": string, "center": vec2(), "size_m": vec2(gt=0), "yaw_deg": number()},
                    required=("center",)),
 }
@@ -268,51 +268,51 @@ _OBJECTS = {
 
 def _object(v, path):
     kind = v.get("type") if isinstance(v, dict) else None
-    if not isinstance(kind, str) or kind not in _OBJECTS:  # (a list or mapping is not a type name)
+    if not isinstance(kind, str) or kind not in OBJECT_SCHEMAS:  # (a list or mapping is not a type name)
         raise Invalid(join(path, "type") if isinstance(v, dict) else path,
-                      f"expected an object type, one of {', '.join(map(repr, _OBJECTS))}, got {kind!r}")
-    return _OBJECTS[kind](v, path)
+                      f"expected an object type, one of {', '.join(map(repr, OBJECT_SCHEMAS))}, got {kind!r}")
+    return OBJECT_SCHEMAS[kind](v, path)
 
 
 _SEG = seq(number(), "a wall [ax, ay, bx, by] of four numbers", length=4)
-_ROOM = {"size_m": vec2(gt=0), "center": vec2(), "walls": seq(_SEG, "a list of walls [ax, ay, bx, by]", 1)}
-_PILLAR = section(Pillar, {"center": vec2(), "radius": _POS}, required=("center",))
-_WORLD = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
+ROOM_SCHEMA = {"size_m": vec2(gt=0), "center": vec2(), "walls": seq(_SEG, "a list of walls [ax, ay, bx, by]", 1)}
+_PILLAR = section(Pillar, {"center": vec2(), "radius": POSITIVE}, required=("center",))
+WORLD_SCHEMA = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
           "objects": seq(_object, "a list of objects")}
-_ROBOTS = {"names": seq(string, "a list of robot names", 1), "radius_m": _POS,
+ROBOTS_SCHEMA = {"names": seq(string, "a list of robot names", 1), "radius_m": POSITIVE,
            "start_angles_deg": seq(number(), "a list of numbers"), "heading": choice("center", "tangent"),
-           "yaw_offsets_deg": seq(number(), "a list of numbers"), "speed_mps": _POS,
+           "yaw_offsets_deg": seq(number(), "a list of numbers"), "speed_mps": POSITIVE,
            "motion": choice("online", "offline"),
-           "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": _POS}),
-           "body_radius_m": _POS}
-_LASER = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
-                               "range_max_m": _POS,
-                               "range_min_m": _NONNEG, "rate_hz": _POS, "noise_std_m": _NONNEG,
+           "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": POSITIVE}),
+           "body_radius_m": POSITIVE}
+LASER_SCHEMA = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
+                               "range_max_m": POSITIVE,
+                               "range_min_m": NON_NEGATIVE, "rate_hz": POSITIVE, "noise_std_m": NON_NEGATIVE,
                                "dropout": number(ge=0, lt=1), "noise_rel": number(ge=0, lt=1)})
-_SLAM = section(SlamConfig, {
-    "model": choice(*SLAM_MODELS), "resolution_m": _POS, "size_m": _POS,
-    "odometry": section(OdometryConfig, {f"alpha{k}": _NONNEG for k in range(1, 6)}),
-    "matcher": section(MatcherConfig, {"linear_window_m": _NONNEG, "angular_window_deg": number(ge=0, le=180),
-                                       "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": _POS,
-                                       "min_log_odds": _NONNEG}),
-    "drift": section(DriftConfig, {"xy_m_per_m": _NONNEG, "yaw_deg_per_m": _NONNEG}),
-    "log_odds": section(LogOddsConfig, {"hit": _POS, "miss": number(lt=0), "clamp": _POS}),
-    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": _POS,
-    "linear_update_m": _NONNEG, "angular_update_rad": _NONNEG})
-_NETWORK = section(NetworkConfig, {"period_s": _POS, "latency_s": _NONNEG, "jitter_s": _NONNEG,
+SLAM_SCHEMA = section(SlamConfig, {
+    "model": choice(*SLAM_MODELS), "resolution_m": POSITIVE, "size_m": POSITIVE,
+    "odometry": section(OdometryConfig, {f"alpha{k}": NON_NEGATIVE for k in range(1, 6)}),
+    "matcher": section(MatcherConfig, {"linear_window_m": NON_NEGATIVE, "angular_window_deg": number(ge=0, le=180),
+                                       "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": POSITIVE,
+                                       "min_log_odds": NON_NEGATIVE}),
+    "drift": section(DriftConfig, {"xy_m_per_m": NON_NEGATIVE, "yaw_deg_per_m": NON_NEGATIVE}),
+    "log_odds": section(LogOddsConfig, {"hit": POSITIVE, "miss": number(lt=0), "clamp": POSITIVE}),
+    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": POSITIVE,
+    "linear_update_m": NON_NEGATIVE, "angular_update_rad": NON_NEGATIVE})
+NETWORK_SCHEMA = section(NetworkConfig, {"period_s": POSITIVE, "latency_s": NON_NEGATIVE, "jitter_s": NON_NEGATIVE,
                                    "loss": number(ge=0, lt=1)})
-_MERGER = section(MergerSettings, {
+MERGER_SCHEMA = section(MergerSettings, {
     "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
     "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score", "contrast"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
-    "roi_min_support": integer(ge=0), "tolerance_m": _POS, "contrast_min": _POS,
-    "window_m": _NONNEG, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
+    "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
+    "window_m": NON_NEGATIVE, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
     "combine_orders": boolean,
-    "correct_tol_deg": _POS, "correct_tol_m": _POS, "min_maps": optional(integer(ge=2)),
+    "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
     "strategy": choice("auto", "orders", "tree"), "share_hypotheses": boolean})
-_OUTPUT = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": _POS, "json": optional_path,
-                               "merged_log_period_s": optional(_NONNEG)})
-_TOP = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
+OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITIVE, "json": optional_path,
+                               "merged_log_period_s": optional(NON_NEGATIVE)})
+TOP_KEYS = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
         "center_error", "network", "merger", "output")
 
 
@@ -320,14 +320,14 @@ def _build(data, source: str) -> Scenario:
     if not isinstance(data, dict):
         raise bad("(top level)", "a mapping of scenario sections", data)
     for k in data:
-        if k not in _TOP:
-            raise Invalid(str(k), f"unknown key; expected one of {', '.join(_TOP)}")
+        if k not in TOP_KEYS:
+            raise Invalid(str(k), f"unknown key; expected one of {', '.join(TOP_KEYS)}")
     robots = _robots(data.get("robots"))
-    laser = _LASER(data.get("laser"), "laser")
+    laser = LASER_SCHEMA(data.get("laser"), "laser")
     if laser.range_min_m >= laser.range_max_m:
         raise bad("laser.range_min_m", f"a number < laser.range_max_m ({laser.range_max_m:g})",
                   laser.range_min_m)
-    slam = _SLAM(data.get("slam"), "slam")
+    slam = SLAM_SCHEMA(data.get("slam"), "slam")
     if slam.free_thresh >= slam.occupied_thresh:
         raise bad("slam.free_thresh", f"a number < slam.occupied_thresh ({slam.occupied_thresh:g})",
                   slam.free_thresh)
@@ -338,7 +338,7 @@ def _build(data, source: str) -> Scenario:
     if cells > MAX_GRID_CELLS:
         raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
                   f"slam.resolution_m = {cells:.0f})", slam.size_m)
-    merger = _MERGER(data.get("merger"), "merger")
+    merger = MERGER_SCHEMA(data.get("merger"), "merger")
     roi_cells = merger.roi_m / slam.resolution_m
     if not MIN_ROI_CELLS <= roi_cells <= MAX_ROI_CELLS:
         raise bad("merger.roi_m", f"a side of {MIN_ROI_CELLS} to {MAX_ROI_CELLS} cells of slam.resolution_m "
@@ -349,8 +349,8 @@ def _build(data, source: str) -> Scenario:
         raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
                   f"{merger.roi_m:g} m)", merger.window_m)
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
-    duration_s = _POS(data.get("duration_s", one_tour), "duration_s")
-    dt_s = _POS(data.get("dt_s", 0.1), "dt_s")
+    duration_s = POSITIVE(data.get("duration_s", one_tour), "duration_s")
+    dt_s = POSITIVE(data.get("dt_s", 0.1), "dt_s")
     if dt_s > duration_s:
         raise bad("dt_s", f"a number <= duration_s ({duration_s:g} s): at least one tick", dt_s)
     if duration_s / dt_s > MAX_TICKS:
@@ -364,17 +364,17 @@ def _build(data, source: str) -> Scenario:
         seed=integer(ge=0)(data.get("seed", 0), "seed"),
         duration_s=duration_s, dt_s=dt_s, world=world, robots=robots, laser=laser, slam=slam,
         center_error=_center_error(data.get("center_error"), robots.names, merger.roi_m),
-        network=_NETWORK(data.get("network"), "network"), merger=merger,
-        output=_OUTPUT(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
+        network=NETWORK_SCHEMA(data.get("network"), "network"), merger=merger,
+        output=OUTPUT_SCHEMA(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
 
 
 def _world(v) -> WorldSpec:
-    w = section(lambda **kw: kw, _WORLD)(v, "world")  # room is checked below: it needs the center
+    w = section(lambda **kw: kw, WORLD_SCHEMA)(v, "world")  # room is checked below: it needs the center
     center = w.get("center", WorldSpec.center)
     room = w.get("room") or {}
     if not isinstance(room, dict):
         raise bad("world.room", "a mapping with size_m and center, or walls", room)
-    r = section(lambda **kw: kw, _ROOM)(room, "world.room")
+    r = section(lambda **kw: kw, ROOM_SCHEMA)(room, "world.room")
     if "walls" in r and ("size_m" in r or "center" in r):
         raise Invalid("world.room", "expected either size_m (and center) or walls, not both")
     room_obj = Room(None, None, r["walls"]) if "walls" in r else \
@@ -383,7 +383,7 @@ def _world(v) -> WorldSpec:
 
 
 def _robots(v) -> RobotsSpec:
-    r = section(lambda **kw: kw, _ROBOTS)(v, "robots")
+    r = section(lambda **kw: kw, ROBOTS_SCHEMA)(v, "robots")
     names = r.get("names", RobotsSpec.names)
     n = len(names)
     if len(set(names)) != n:
@@ -452,18 +452,18 @@ def _assign(data: dict, keys: list[str], value, label: str) -> None:
     node[keys[-1]] = value
 
 
-def _plain(v):
+def plain_value(v):
     if is_dataclass(v):
         out = {"type": v.type} if hasattr(type(v), "type") else {}
         for f in fields(v):
             if f.compare:
-                out[f.name] = _plain(getattr(v, f.name))
+                out[f.name] = plain_value(getattr(v, f.name))
         if isinstance(v, Room):
             keep = ("walls",) if v.size_m is None else ("size_m", "center")
             out = {k: out[k] for k in keep}
         return out
     if isinstance(v, tuple | list):
-        return [_plain(x) for x in v]
+        return [plain_value(x) for x in v]
     if isinstance(v, dict):
-        return {str(k): _plain(x) for k, x in v.items()}
+        return {str(k): plain_value(x) for k, x in v.items()}
     return v

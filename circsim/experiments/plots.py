@@ -81,7 +81,7 @@ def choose_axes(grid_keys: list[str]) -> tuple[str, list[str]]:
     return grid_keys[0], grid_keys[1:]
 
 
-def _x_position(values: list) -> tuple[dict, list, list]:
+def x_position(values: list) -> tuple[dict, list, list]:
     """({value as JSON: x}, ticks, tick labels): numbers at their value; anything else (e.g. method
     names) at 0, 1, 2, ... in label order."""
     if all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
@@ -118,7 +118,7 @@ def sweep_figure(rows: list[dict], line_keys: list[str], *, title: str = "", x_k
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    xmap, ticks, tick_labels = _x_position([r.get(x_key) for r in rows])
+    xmap, ticks, tick_labels = x_position([r.get(x_key) for r in rows])
     xs = sorted(set(xmap.values()))
     lines: dict[str, list[dict]] = {}
     for r in rows:

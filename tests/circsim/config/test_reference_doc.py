@@ -3,7 +3,7 @@
 
 from circsim.cli import main
 from circsim.config.reference_doc import scenario_reference
-from circsim.config.scenario import _TOP
+from circsim.config.scenario import TOP_KEYS
 from tests.paths import REPO
 
 DOC = REPO / "docs" / "scenario-reference.md"
@@ -16,7 +16,7 @@ def test_reference_in_docs_is_current():
 
 def test_reference_lists_every_section_and_the_cli_prints_it(capsys):
     text = scenario_reference()
-    for key in _TOP:
+    for key in TOP_KEYS:
         assert f"`{key}" in text, key
     for row in ("| `merger.nu_min` | `0.5` | a number in [0, 1] |", "| `world.pillars[].radius` | `0.2` |",
                 "| `world.objects[].center` | (required) |", "`latency` → `network.latency_s`"):

@@ -261,15 +261,15 @@ def test_pool_workers_exit_when_the_sweep_parent_dies(tmp_path, how):
 def test_sweep_plot_x_axis_is_the_swept_key(tmp_path):
     """Issue 12: sweep.png plots against center error when it is swept, else against the first --grid key
     (numbers at their value, names in order), ticks at the swept values."""
-    from circsim.experiments.plots import _x_position, choose_axes, plot_sweep
+    from circsim.experiments.plots import choose_axes, plot_sweep, x_position
 
     assert choose_axes(["network.latency_s", "center_error.magnitude_m"]) == ("center_error.magnitude_m",
                                                                               ["network.latency_s"])
     assert choose_axes(["network.latency_s", "merger.window_m"]) == ("network.latency_s", ["merger.window_m"])
     assert choose_axes([]) == ("center_error.magnitude_m", [])
-    xmap, ticks, labels = _x_position([3.0, 0.0, 1.0, 0.0])
+    xmap, ticks, labels = x_position([3.0, 0.0, 1.0, 0.0])
     assert ticks == [0.0, 1.0, 3.0] and labels == ["0", "1", "3"] and xmap["3.0"] == 3.0
-    xmap, ticks, labels = _x_position(["reference", "fast", "fast"])
+    xmap, ticks, labels = x_position(["reference", "fast", "fast"])
     assert ticks == [0.0, 1.0] and labels == ["fast", "reference"]
     row = {"seed": 1, "center_error.magnitude_m": 0.0, "first_merge_s.mean": 3.0, "first_merge_arc_deg.mean": 9.0,
            "all_merged": True, "false_merges": 0, "rejected_correct_rate": 0.1, "top_error_deg.median": 0.2}

@@ -2,7 +2,7 @@
 
 Every key, its default and what the loader expects come from :mod:`circsim.config.scenario`'s validators and
 defaults, so the page cannot drift from the code: ``circsim scenarios --reference`` prints it and
-``tests/test_scenario_doc.py`` checks that the file in docs/ is current (regenerate it with
+``tests/circsim/config/test_reference_doc.py`` checks that the file in docs/ is current (regenerate it with
 ``circsim scenarios --reference > docs/scenario-reference.md``).
 """
 

@@ -5,7 +5,7 @@ x_ref = c_ref + t + R(θ)(x_mov − c_mov), t within ±window_m in one-cell step
 * W = 0 is the thesis's rotation-only search bit for bit (a yardstick written out in this file);
 * the window's parameters and their errors;
 * the fast windowed method against the exhaustive reference on fixed seeds (the property tests over
-  arbitrary grids are in tests/test_search_engine.py);
+  arbitrary grids are in tests/merger/search/test_engine.py);
 * recovery of (θ*, t*) with rough centers on generated rooms and on the real office map, and in a team
   merge (where the rotation-only search fails with the same center errors);
 * the grid answer (refine=False) and the bounds of the sub-cell refinement.

@@ -24,19 +24,8 @@ import yaml
 
 from circsim.config.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_from_dict
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
-from merger.io.mapio import (
-    MAX_MAP_CELLS,
-    MAX_YAML_BYTES,
-    InputLimitError,
-    MapFileError,
-    YamlLimitError,
-    check_outputs,
-    load_map,
-    load_yaml,
-    map_files,
-    read_input,
-    save_map,
-)
+from merger.io.mapio import MAX_MAP_CELLS, MapFileError, check_outputs, load_map, map_files, save_map
+from merger.limits import MAX_YAML_BYTES, InputLimitError, YamlLimitError, load_yaml, read_input
 from merger.search import MAX_ROI_CELLS, RotationProblem, search
 from merger.search.refine import REMAP_MAX_COLS, _remap_mean
 from tests.paths import REAL_MAP

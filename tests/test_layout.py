@@ -125,3 +125,21 @@ def test_the_layering():
 def test_tests_do_not_import_benchmarks():
     for p in (REPO / "tests").rglob("*.py"):
         assert "benchmarks" not in {c[-1].split(".")[0] for c in imported_names("tests.x", p)}, p
+
+
+def test_every_import_of_ours_names_something_that_exists():
+    """Function-level imports run only when called: a moved module or name would break them silently."""
+    import importlib
+
+    files = {**module_files(), **module_files(REPO, ("tests",))}
+    missing = []
+    for mod, path in files.items():
+        for candidates in imported_names(mod, path):
+            target = candidates[-1]
+            if target.split(".")[0] not in (*PACKAGES, "tests"):
+                continue
+            m = importlib.import_module(target)
+            name = candidates[0].rpartition(".")[2] if len(candidates) == 2 else None
+            if name and not hasattr(m, name) and candidates[0] not in files:
+                missing.append(f"{path.relative_to(REPO)}: {target}.{name}")
+    assert not missing, missing

@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 
 from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.config.types import LaserConfig
+from circsim.world import laser
 from circsim.world.laser import raycast, scan
 from circsim.world.motion import trajectories
-from circsim.world.world import World, laser
+from circsim.world.world import World
 
 BODY = 0.18
 

@@ -84,7 +84,8 @@ def search(problem: RotationProblem, method: str = "reference") -> Alignment:
 
 __all__ = [
     "COARSE_STEP_DEG", "FINE_HALF_WIDTH_DEG", "FINE_STEP_DEG", "MAX_ROI_CELLS", "MAX_WINDOW_FRACTION",
-    "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery", "RotationProblem",
+    "BEYOND_GUARDS", "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery",
+    "RotationProblem",
     "angle_diff_deg", "beyond_window", "check_roi_cells", "check_window", "clear_all", "exact_runner_up",
     "fast_search", "fine_angles",
     "reference_beyond", "reference_search", "refine_alignment", "register_method", "runner_up", "search",

@@ -34,8 +34,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from circsim.config.scenario import bundled_scenarios, load_scenario  # noqa: E402
 from circsim.events import Observer  # noqa: E402
-from circsim.scenario import bundled_scenarios, load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 

@@ -25,8 +25,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from circsim.config.scenario import load_scenario  # noqa: E402
 from circsim.events import Observer  # noqa: E402
-from circsim.scenario import load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
                     help="override a scenario value (repeatable)")
     args = ap.parse_args(argv)
 
-    from circsim.cli import resolve_scenario
+    from circsim.commands import resolve_scenario
 
     sc = load_scenario(resolve_scenario(args.scenario)).with_overrides([f"duration_s={args.duration}", *args.set])
     print(f"cpus {os.cpu_count()}  load " + " ".join(f"{v:.2f}" for v in os.getloadavg()))

@@ -35,14 +35,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from circsim.config.scenario import load_scenario  # noqa: E402
 from circsim.events import Observer  # noqa: E402
-from circsim.scenario import load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 
 class _MergeWall(Observer):
     """The wall time the merge cycles took in this process (``cycle_ms`` is their cost: wall time plus the
-    computing time of the results a robot took from the run's shared memo, merger.memo)."""
+    computing time of the results a robot took from the run's shared memo, merger.team.memo)."""
 
     def __init__(self) -> None:
         self.ms = 0.0
@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     ap.add_argument("--window-error", type=float, default=0.25, help="center error of run 4, metres")
     args = ap.parse_args(argv)
 
-    from circsim.cli import resolve_scenario
+    from circsim.commands import resolve_scenario
 
     sc = load_scenario(resolve_scenario(args.scenario))
     duration = 20.0 if args.quick and args.duration is None else args.duration
@@ -112,7 +112,7 @@ def main(argv=None) -> int:
           + f"   false merges {res.false_merges}")
 
     if not args.no_record:
-        from circsim.record import RerunRecorder
+        from circsim.record.rerun import RerunRecorder
 
         with tempfile.TemporaryDirectory() as d:
             path = Path(d) / "bench.rrd"

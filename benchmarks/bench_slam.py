@@ -24,7 +24,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from circsim import slam as slam_module  # noqa: E402
-from circsim.scenario import bundled_scenarios, load_scenario  # noqa: E402
+from circsim.config.scenario import bundled_scenarios, load_scenario  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
 
 

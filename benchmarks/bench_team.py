@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 def team_scenario(n: int, duration: float, strategy: str, seed: int, extra=()):
     """The hall with its first ``n`` robots evenly spread on the circle."""
-    from circsim.scenario import bundled_scenarios, load_scenario
+    from circsim.config.scenario import bundled_scenarios, load_scenario
 
     base = load_scenario(bundled_scenarios()["hall8"])
     names = list(base.robots.names)[:n]

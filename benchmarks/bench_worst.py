@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 
 from merger import align  # noqa: E402
 from merger.grid import OccupancyGrid  # noqa: E402
-from merger.mapio import load_map  # noqa: E402
+from merger.io.mapio import load_map  # noqa: E402
 
 OFFICE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-maps" / "turtlebot3_office.yaml"
 MEASURES = ("similarity", "birk_carpin", "ncc")

@@ -40,11 +40,11 @@ import numpy as np  # noqa: E402
 
 from merger import MapInput, MergeParams, merge_team  # noqa: E402
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid  # noqa: E402
-from merger.mapio import load_map  # noqa: E402
+from merger.io.mapio import load_map  # noqa: E402
 from merger.search import angle_diff_deg  # noqa: E402
-from merger.team import Warps  # noqa: E402
+from merger.team.orders import Warps  # noqa: E402
+from merger.team.verify import verify_contrast  # noqa: E402
 from merger.transform import overlap, rotation  # noqa: E402
-from merger.verify import verify_contrast  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-maps"
 THETA_TOL_DEG = 3.0  # a placement is correct within this angle ...

@@ -11,53 +11,27 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
 from pathlib import Path
+
+from . import commands
+from .commands import (
+    UsageError,
+    add_scenario_args,
+    begin_work,
+    interrupted_code,
+    load_with_overrides,
+    progress_observer,
+    resolve_scenario,
+)
 
 # the scenario module (numpy, OpenCV, the merger) is imported inside main: a Ctrl-C while it loads is
 # then one line, not a traceback
 
 
-class UsageError(Exception):
-    pass
-
-
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise UsageError(message)
-
-
-def resolve_scenario(arg: str) -> Path:
-    """A scenario file path, or the name of a bundled scenario (``scene1``)."""
-    from .scenario import bundled_scenarios
-
-    p = Path(arg)
-    if p.exists():
-        return p
-    bundled = bundled_scenarios()
-    if arg in bundled:
-        return bundled[arg]
-    raise UsageError(f"{arg}: no such scenario file (bundled scenarios: {', '.join(bundled)})")
-
-
-def load_with_overrides(arg: str, seed: int | None, sets: list[str]):
-    """The scenario ``arg`` (file or bundled name) with ``--set`` assignments and ``--seed`` applied."""
-    from .scenario import load_scenario
-
-    sc = load_scenario(resolve_scenario(arg))
-    assignments = list(sets or [])
-    if seed is not None:
-        assignments.append(f"seed={seed}")
-    return sc.with_overrides(assignments) if assignments else sc
-
-
-def add_scenario_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="scenario YAML file or bundled scenario name (see `circsim scenarios`)")
-    p.add_argument("--seed", type=int, help="override the scenario's seed")
-    p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
-                   help="override a scenario value, e.g. --set center_error.magnitude_m=0.1 (repeatable)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -95,37 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def extra_commands():
     """Experiment commands that live in their own modules (each module adds its subparser)."""
-    from . import experiments_cli
+    from .experiments import cli as experiments_cli
 
     return experiments_cli.REGISTER
-
-
-def show_progress(quiet: bool) -> bool:
-    """The one rule for progress bars (run, offline, calibrate, sweep): on a terminal only, never with
-    --quiet; piped or redirected output stays free of bar redraws."""
-    return not quiet and sys.stderr.isatty()
-
-
-def progress_observer(sc, quiet: bool):
-    from .events import Observer
-
-    if not show_progress(quiet):
-        return None
-    from tqdm import tqdm
-
-    class Progress(Observer):
-        def __init__(self):
-            self.bar = tqdm(total=round(sc.duration_s, 1), unit="sim s", desc=sc.name, leave=False)
-
-        def on_tick(self, t, step, ticks):
-            self.bar.n = round(t, 1)
-            if step % 10 == 0:
-                self.bar.refresh()
-
-        def on_end(self, result):
-            self.bar.close()
-
-    return Progress()
 
 
 def summary(res) -> str:
@@ -181,9 +127,9 @@ def _writable(path: Path, what: str) -> None:
 def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
     """Before the run: no output may be the scenario file, another output (``--rrd X --json X``, a
     ``--json`` inside ``--save-maps`` named like a robot's map), a folder, a link or a special file."""
-    from merger.mapio import CENTERS_FILE, check_outputs, map_paths
+    from merger.io.mapio import CENTERS_FILE, check_outputs, map_paths
 
-    from .savemaps import file_stem
+    from .record.savemaps import file_stem
 
     outputs = []
     if rrd:
@@ -199,7 +145,7 @@ def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
 
 
 def cmd_run(args) -> int:
-    from merger.mapio import MapFileError, ensure_output_dir, write_files
+    from merger.io.mapio import MapFileError, ensure_output_dir, write_files
 
     from .sim import Simulation
 
@@ -218,14 +164,14 @@ def cmd_run(args) -> int:
     if args.save_maps:
         ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
-    from .savemaps import MapSaver
+    from .record.savemaps import MapSaver
 
     saver = MapSaver() if args.save_maps else None
     if saver:
         observers.append(saver)
     recorder = None
     if rrd or args.spawn:
-        from .record import RerunRecorder
+        from .record.rerun import RerunRecorder
 
         recorder = RerunRecorder(str(rrd) if rrd else None, spawn=args.spawn, scan_log_hz=sc.output.scan_log_hz,
                                  merged_log_period_s=sc.output.merged_log_period_s)
@@ -264,7 +210,7 @@ def cmd_run(args) -> int:
             print(f"circsim: error: --save-maps: {e}; the run's figures are above", file=sys.stderr)
             failed = True
     if json_out:
-        from . import jsonout
+        from .record import jsonout
 
         try:
             write_files({json_out: jsonout.dumps(res.to_dict(), indent=2).encode()})  # 8.6, not 8.600000000000001
@@ -283,10 +229,10 @@ def cmd_run(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
-    from .scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
+    from .config.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_to_dict
 
     if args.reference:
-        from .scenario_doc import scenario_reference
+        from .config.reference_doc import scenario_reference
 
         print(scenario_reference(), end="")
         return 0
@@ -310,7 +256,7 @@ def cmd_scenarios(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from .record import view
+    from .record.viewer import view
 
     begin_work()
     return view(args.rrd, web=args.web)
@@ -319,61 +265,12 @@ def cmd_view(args) -> int:
 COMMANDS = {"run": cmd_run, "scenarios": cmd_scenarios, "view": cmd_view}
 
 
-_TERMINATED = []  # a SIGTERM arrived (the exit code is then 143, 128 + SIGTERM)
-_STATE = {"starting": False, "sigint_ignored_at_start": False, "own_sigint": False}
-
-
-def _stop_starting(signum, frame) -> None:
-    """A signal while circsim starts (modules loading, scenario checked; nothing written yet): one line and
-    out at once. Raising KeyboardInterrupt here could land in an import's cleanup callback, where Python
-    prints a traceback and swallows it."""
-    term = signum == signal.SIGTERM
-    sys.stderr.write("circsim: terminated\n" if term else "circsim: interrupted\n")
-    sys.stderr.flush()
-    os._exit(143 if term else 130)
-
-
-def _sigterm_as_ctrl_c(signum, frame) -> None:
-    """SIGTERM does what Ctrl-C does at this moment: the run's handler (stop at the end of the tick; a
-    second one interrupts at once), or KeyboardInterrupt. While SIGINT is ignored for a moment (the
-    recorder writing the .rrd footer) it is ignored too; the run is ending anyway."""
-    if _STATE["starting"]:
-        _stop_starting(signum, frame)
-    _TERMINATED.append(signum)
-    h = signal.getsignal(signal.SIGINT)
-    if h is signal.SIG_IGN and not _STATE["sigint_ignored_at_start"]:
-        return
-    if callable(h) and h is not signal.default_int_handler:
-        h(signal.SIGINT, frame)
-        return
-    raise KeyboardInterrupt
-
-
-def begin_work() -> None:
-    """Called by a command when its work begins (the run, the sweep's pool): from here Ctrl-C and SIGTERM
-    stop the work and keep what it produced (KeyboardInterrupt, or the run's tick-boundary handler)."""
-    _STATE["starting"] = False
-    if _STATE["own_sigint"] and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        _STATE["own_sigint"] = False
-
-
 def main(argv=None) -> int:
-    saved = {}
-    _TERMINATED.clear()
-    if threading.current_thread() is threading.main_thread():
-        _STATE["sigint_ignored_at_start"] = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
-        saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            saved[signal.SIGINT] = signal.signal(signal.SIGINT, _stop_starting)
-            _STATE["own_sigint"] = True
-        _STATE["starting"] = True
+    saved = commands.start()
     try:
         return _main(argv)
     finally:
-        _STATE.update(starting=False, own_sigint=False)
-        for sig, h in saved.items():
-            signal.signal(sig, h)
+        commands.finish(saved)
 
 
 def _main(argv=None) -> int:
@@ -382,13 +279,13 @@ def _main(argv=None) -> int:
         fn = COMMANDS.get(args.cmd) or args.func
         return fn(args)
     except KeyboardInterrupt:
-        print("circsim: terminated" if _TERMINATED else "circsim: interrupted", file=sys.stderr)
-        return 143 if _TERMINATED else 130
+        print("circsim: terminated" if commands.terminated() else "circsim: interrupted", file=sys.stderr)
+        return commands.interrupted_code()
     except BrokenPipeError:  # `circsim scenarios | head -1`: the reader left; not an error (Python docs' way)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
         return 1
     except Exception as e:
-        from .scenario import ScenarioError
+        from .config.scenario import ScenarioError
 
         if isinstance(e, UsageError | ScenarioError | FileNotFoundError | ValueError):
             print(f"circsim: error: {e}", file=sys.stderr)
@@ -399,12 +296,5 @@ def _main(argv=None) -> int:
         raise
 
 
-def interrupted_code() -> int:
-    """Exit code of a command stopped early: 143 after SIGTERM, 130 after Ctrl-C."""
-    return 143 if _TERMINATED else 130
-
-
-if __name__ == "__main__":  # run the imported module's main: experiments_cli's begin_work must see its state
-    from circsim import cli
-
-    sys.exit(cli.main())
+if __name__ == "__main__":
+    sys.exit(main())

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from merger.grid import OccupancyGrid
-from merger.team import TeamMergeResult
+from merger.team.orders import TeamMergeResult
 
 
 @dataclass(frozen=True, eq=False)
@@ -25,7 +25,7 @@ class RobotTick:
     est_pose: tuple[float, float, float]  # SLAM estimate (x, y, yaw) in M_i
     est_pose_world: tuple[float, float, float]  # the SLAM estimate drawn in W via the true start pose
     arc_deg: float  # degrees travelled on the circle so far
-    scan: object  # circsim.laser.LaserScan
+    scan: object  # circsim.world.laser.LaserScan
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,7 +45,7 @@ class MergeCycle:
     teammates_placed : teammates that the alignment the robot holds after this cycle (accepted now or
         kept from earlier) places correctly, each within both tolerances.
     adopted_from : not a merge cycle of the robot's own but a teammate's hypothesis it adopted (shared
-        hypotheses, :mod:`merger.shared`): the sender's name; "" for the robot's own cycles.
+        hypotheses, :mod:`merger.team.shared`): the sender's name; "" for the robot's own cycles.
     est_truth_deg, est_angle_error_deg, est_translation_error_m, est_correct : the same judgement against
         the *estimated-frame* truth: the alignment the maps as their SLAMs built them call for (from the
         SLAMs' pose estimates when the held maps were published, :func:`circsim.sim.estimated_truth`). A
@@ -96,7 +96,7 @@ class Observer:
 
     def on_hypothesis(self, t: float, recipient: str, adoption) -> None:
         """A teammate's hypothesis arrived (shared hypotheses) and was weighed: ``adoption`` is a
-        :class:`merger.shared.Adoption` (adopted or refused, and why)."""
+        :class:`merger.team.shared.Adoption` (adopted or refused, and why)."""
 
     def on_event(self, t: float, level: str, text: str) -> None:
         """A human-readable event (level: "info", "warn", "error")."""

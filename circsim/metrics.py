@@ -11,11 +11,11 @@
   any translation error > ``correct_tol_m``).
 * ``rejected_correct`` — merge cycles whose best hypothesis was correct but rejected.
 * ``merge_cycle_ms`` — cost of one merge cycle (all orders + verification): median and p95 of its wall time
-  plus the computing time of the pair results it took from the robots' shared memo (:mod:`merger.memo`): what
+  plus the computing time of the pair results it took from the robots' shared memo (:mod:`merger.team.memo`): what
   the cycle costs a robot computing alone.
 * ``realtime_factor`` — simulated seconds per wall second of the run.
 * ``consensus_s`` — simulated seconds to the first time every robot holds the same global alignment: each
-  holds a placement of every map, and expressed in one frame (:func:`merger.team.compose`) all of them
+  holds a placement of every map, and expressed in one frame (:func:`merger.team.orders.compose`) all of them
   agree within ``CONSENSUS_TOL_DEG`` (0.1°) and one cell (the SLAM grid's resolution); None if never.
   ``consensus_final``: whether they still do at the end; ``consensus_held_s``: for how many simulated
   seconds in all they did. With shared hypotheses
@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from merger.search import angle_diff_deg
-from merger.team import Placement, compose
+from merger.team.orders import Placement, compose
 
 from .events import MergeCycle, Observer
 

@@ -14,21 +14,7 @@ import heapq
 from dataclasses import dataclass
 from typing import Any
 
-
-@dataclass(frozen=True)
-class NetworkConfig:
-    """Map exchange parameters.
-
-    period_s : how often robots send their map (used by the simulation loop; the thesis used 2 s).
-    latency_s : smallest one-way delay.
-    jitter_s : scale of the extra delay ``jitter_s * |N(0, 1)|`` added to the latency (never subtracted).
-    loss : probability that a message is lost.
-    """
-
-    period_s: float = 2.0
-    latency_s: float = 0.1
-    jitter_s: float = 0.0
-    loss: float = 0.0
+from .config.types import NetworkConfig
 
 
 @dataclass(frozen=True, eq=False)  # payloads are arrays or grids: identity, not value, comparison

@@ -31,12 +31,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from merger.memo import Memo
-from merger.online import MapMessage, TeamMerger
-from merger.team import MergeParams
+from merger.team.memo import Memo
+from merger.team.online import MapMessage, TeamMerger
+from merger.team.orders import MergeParams
 
+from .config.scenario import Scenario, scenario_to_dict
 from .events import MergeCycle, Observer, RobotTick
-from .laser import scan as laser_scan
 from .metrics import (
     CONSENSUS_TOL_DEG,
     JUDGE_EPS_DEG,
@@ -46,11 +46,11 @@ from .metrics import (
     RunResult,
     judge_placement,
 )
-from .motion import CircleTrajectory, trajectories
 from .network import Network
-from .scenario import Scenario, scenario_to_dict
-from .slam import Slam
-from .world import World
+from .slam.models import Slam
+from .world.laser import scan as laser_scan
+from .world.motion import CircleTrajectory, trajectories
+from .world.world import World
 
 
 @dataclass
@@ -95,7 +95,7 @@ def truth_translation(theta_deg: float, e_i, e_j) -> tuple[float, float]:
 
 def estimated_truth(frame_i, frame_j, c_i, c_j) -> tuple[float, tuple[float, float]]:
     """The alignment of map j onto map i that the maps *as built* call for: θ̂ (degrees in [0, 360)) and t̂
-    about the given centers, from each map's frame as its SLAM built it (:meth:`circsim.slam.Slam.
+    about the given centers, from each map's frame as its SLAM built it (:meth:`circsim.slam.models.Slam.
     map_frame_estimate`, poses in W). With T = F_i⁻¹ ∘ F_j (map j's coordinates to map i's),
     x_i = c_i + t̂ + R(θ̂)(x_j − c_j) holds for θ̂ = yaw(T) and t̂ = R(θ̂)·c_j + p_T − c_i. With exact SLAM
     (F = the start poses) this is the start-frame truth (θ*, t*)."""
@@ -123,7 +123,7 @@ class Simulation:
     def __init__(self, scenario: Scenario, observers: list[Observer] = (), *, share_searches: bool = True) -> None:
         sc = self.scenario = scenario
         # the robots hold the same teammates' maps and would search the same pairs: each is computed once
-        # and its time charged to every robot that takes it (merger.memo; results and metrics unchanged)
+        # and its time charged to every robot that takes it (merger.team.memo; results and metrics unchanged)
         n = len(sc.robots.names)  # entries: a few map versions of every pair (older ones are never asked again)
         self.memo = Memo(max(32, 3 * n * (n - 1))) if share_searches else None
         self.seed = int(sc.seed)

@@ -3,18 +3,18 @@
 Implements section 3.3 of the thesis ("Merging of Occupancy Grid Maps with Common Center"): exhaustive
 rotation search maximizing the modified similarity index ω̃ on a region of interest around the center,
 verification on the whole maps, three (in general N(N−1)/2) merge orders and the choice of the best
-verified one. numpy, OpenCV and numba kernels: no I/O in the algorithms (file formats live in :mod:`merger.mapio`).
+verified one. numpy, OpenCV and numba kernels: no I/O in the algorithms (file formats live in :mod:`merger.io.mapio`).
 """
 
 from __future__ import annotations
 
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from .online import MapMessage, TeamMerger
+from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
 from .search import ROI_MIN_SUPPORT, SEARCH_METHODS, Alignment, RotationProblem, register_method, search
-from .similarity import Counts, Similarity, birk_carpin, ncc, similarity_index
-from .superpose import fuse, superpose
-from .team import MapInput, MergeParams, OrderResult, TeamMergeResult, merge_orders, merge_team
-from .verify import Verification, verify
+from .team.online import MapMessage, TeamMerger
+from .team.orders import MapInput, MergeParams, OrderResult, TeamMergeResult, merge_orders, merge_team
+from .team.superpose import fuse, superpose
+from .team.verify import Verification, verify
 
 __all__ = [
     "FREE", "OCCUPIED", "UNKNOWN", "OccupancyGrid", "MapMessage", "TeamMerger", "SEARCH_METHODS",
@@ -63,13 +63,13 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
 
 def load_map(path):
     """Read a ROS map_server map (YAML + PGM) into an :class:`OccupancyGrid`."""
-    from .mapio import load_map as _load
+    from .io.mapio import load_map as _load
 
     return _load(path)
 
 
 def save_map(grid: OccupancyGrid, path, **kw):
     """Write a ROS map_server map (YAML + PGM) of ``grid``."""
-    from .mapio import save_map as _save
+    from .io.mapio import save_map as _save
 
     return _save(grid, path, **kw)

@@ -1,7 +1,13 @@
 """Command line: ``merger align``, ``merger merge`` and ``merger demo``.
 
 A user's mistake (bad file, bad argument) prints one line ``merger: error: ...`` and exits with 2, before
-any work and with nothing written.
+any work and with nothing written. The limits it checks are :mod:`merger.limits` (shared with circsim);
+the file formats are :mod:`merger.io`.
+
+Why this module is longer than ~400 lines: it is the whole command line — the parser, the argument
+checks the three commands share (centers, ROI, merge options, outputs) and the three commands, each a
+short function over the library's API. Split it into a ``merger/cli/`` package when a fourth command
+comes; until then one file shows every option and its check together.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import align
-from .mapio import (
+from .io.mapio import (
     CENTERS_FILE,
     MAX_MAP_CELLS,
     MAX_MAP_SIDE,
@@ -29,17 +35,16 @@ from .mapio import (
     map_files,
     map_input_paths,
     map_paths,
+    merge_command,
     overlay_png,
     write_files,
 )
+from .limits import MAX_ROI_M, MIN_ROI_CELLS
+from .measures import MEASURES
 from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
-from .similarity import MEASURES
-from .team import MapInput, MergeParams, merge_team
+from .team.orders import MapInput, MergeParams, merge_team
+from .team.verify import no_evidence, verify, verify_contrast
 from .transform import canvas, paste, rotation, warp_grid
-from .verify import no_evidence, verify, verify_contrast
-
-MAX_ROI_M = 100.0  # a larger region of interest is a typo (or hours of search), not a map
-MIN_ROI_CELLS = 10  # a smaller ROI holds no structure to align (--roi 1e-9 ran on one cell)
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -352,7 +357,7 @@ def check_map_centers(paths, grids, centers, roi_m: float) -> None:
 def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],
                roi_m: float) -> list[MapInput]:
     """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot."""
-    from .bagio import read_bag_maps, topic_names
+    from .io.bagio import read_bag_maps, topic_names
 
     if maps:
         raise UsageError("--bag: give the maps either as files or as --bag with --topics, not both")
@@ -379,28 +384,6 @@ def check_same_resolution(paths: list[Path], grids) -> None:
                              "maps of one resolution (resample one first)")
 
 
-def merge_command(paths, centers, out, params: MergeParams | None = None) -> str:
-    """The ``merger merge`` command line that merges ``paths`` with their ``centers`` (one per map) into
-    ``out``, with the merge options of ``params`` that differ from the defaults."""
-    import shlex
-
-    words = ["merger", "merge", *(str(p) for p in paths)]
-    for x, y in centers:
-        words += ["--center", f"{round(x, 6) + 0.0:.6f},{round(y, 6) + 0.0:.6f}"]  # no "-0.000000"
-    d = MergeParams()
-    for opt, key in (("--roi", "roi_m"), ("--measure", "measure"), ("--method", "method"),
-                     ("--window", "window_m"), ("--nu-min", "nu_min"), ("--min-support", "min_support")):
-        if params is not None and getattr(params, key) != getattr(d, key):
-            words += [opt, f"{getattr(params, key):g}" if isinstance(getattr(params, key), float)
-                      else str(getattr(params, key))]
-    if params is not None and not params.refine:
-        words.append("--no-refine")
-    if params is not None and not params.combine_orders:
-        words.append("--no-combine-orders")
-    words += ["-o", str(out)]
-    return " ".join(shlex.quote(w) for w in words)
-
-
 def report_merge(res, as_json: bool) -> None:
     if as_json:
         print(json.dumps(res.to_dict()))
@@ -418,8 +401,8 @@ def report_merge(res, as_json: bool) -> None:
 def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
     """The merged map (OUT.yaml/.pgm) and its overlay (OUT_overlay.png) as {path: bytes}; none when no order
     passed verification and ``force`` is off."""
-    from .superpose import fuse
-    from .team import fused_layers
+    from .team.orders import fused_layers
+    from .team.superpose import fuse
 
     if res.accepted:
         merged, layers = res.merged, [res.layers[m.name] for m in maps]

@@ -1,4 +1,5 @@
-"""Shared generators of adversarial search problems (tests and benchmarks/agree_search.py import them).
+"""Shared generators: small hand-made grids, generated three-robot scenes (:func:`three_views`) and
+adversarial search problems (tests and benchmarks/agree_search.py import them; never the reverse).
 
 Kinds (``adversarial_problem``): random ternary grids; a map against its own rotation shifted by one
 cell (near-ties, plateaus); walls where the window's edge puts them; near-empty maps; maps of two
@@ -8,10 +9,35 @@ blocks), rotation only or with a window.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
 from merger.search import RotationProblem
+from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
+
+U, F, O = 0, 1, 2  # state codes
+
+
+def grid(rows, res=0.05, origin=(0.0, 0.0)):
+    """An OccupancyGrid from rows of state codes, first row = lowest y."""
+    return OccupancyGrid(np.array(rows, np.uint8), res, origin)
+
+
+def three_views(seed: int, *, arc=30.0, radius=1.8, noise=0.002, yaw_spread=40.0, **scene_kw):
+    """Scene + three robots' partial maps (names Lyon, Auckland, Nevers) and true rotations onto Lyon."""
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng, **scene_kw)
+    names, starts = ["Lyon", "Auckland", "Nevers"], [90.0, 210.0, 330.0]
+    maps, poses = [], []
+    for a in starts:
+        pose = robot_pose_on_circle(a, radius, yaw_offset_deg=rng.uniform(-yaw_spread, yaw_spread))
+        g, c = partial_view(scene, pose, arc_viewpoints(a, arc, radius), noise=noise, rng=rng)
+        maps.append((g, c))
+        poses.append(pose)
+    truth = {n: math.degrees(p[2] - poses[0][2]) % 360 for n, p in zip(names, poses, strict=True)}
+    return scene, names, maps, truth
 
 
 def random_grid(rng, side: int, res: float = 0.05, p=None) -> OccupancyGrid:

@@ -2,11 +2,12 @@
 scenario template and pytest guard run as printed."""
 
 import re
-from pathlib import Path
 
 import yaml
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.paths import REPO
+
+ROOT = REPO
 README = ROOT / "README.md"
 TEST_COMMAND = 'python3 -m venv .venv && .venv/bin/pip install -e ".[test]" && .venv/bin/python -m pytest -q -n 2'
 
@@ -40,7 +41,7 @@ def test_every_relative_link_resolves():
 
 
 def test_readme_scenario_template_is_valid():
-    from circsim.scenario import scenario_from_dict
+    from circsim.config.scenario import scenario_from_dict
 
     sc = scenario_from_dict(yaml.safe_load(block(README.read_text(), "<!-- scenario-template -->", "yaml")),
                             source="my-room.yaml")

@@ -1,6 +1,6 @@
 """Property-based fuzzing of the user-facing readers (issue 12): generated bad input to the scenario loader,
 ``--set`` parsing and the ROS map reader. Whatever comes in, the only exception that may escape is the
-documented one-line error — :class:`circsim.scenario.ScenarioError` or :class:`merger.mapio.MapFileError` —
+documented one-line error — :class:`circsim.config.scenario.ScenarioError` or :class:`merger.io.mapio.MapFileError` —
 never a traceback of something else. Examples per test are in ``EXAMPLES`` (docs/troubleshooting.md says how many).
 """
 
@@ -15,7 +15,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from circsim.scenario import (
+from circsim.config.scenario import (
     ScenarioError,
     bundled_scenarios,
     load_scenario,
@@ -23,7 +23,8 @@ from circsim.scenario import (
     scenario_to_dict,
 )
 from merger.grid import OccupancyGrid
-from merger.mapio import MapFileError, load_map
+from merger.io.mapio import MapFileError, load_map
+from tests.paths import REPO
 
 EXAMPLES = {"scenario_data": 400, "scenario_text": 200, "set": 400, "map_yaml": 300, "map_image": 200}
 
@@ -184,9 +185,8 @@ def test_map_image_bytes_refused_in_one_line(tmp_path_factory, data, suffix):
 
 
 def test_example_counts_are_what_the_docs_say():
-    from pathlib import Path
 
-    page = (Path(__file__).resolve().parents[1] / "docs" / "troubleshooting.md").read_text()
+    page = (REPO / "docs" / "troubleshooting.md").read_text()
     total = sum(EXAMPLES.values())
     assert f"{total} generated inputs" in page
 

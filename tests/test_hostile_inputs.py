@@ -22,29 +22,18 @@ import numpy as np
 import pytest
 import yaml
 
-from circsim.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_from_dict
+from circsim.config.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_from_dict
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
-from merger.mapio import (
-    MAX_MAP_CELLS,
-    MAX_YAML_BYTES,
-    InputLimitError,
-    MapFileError,
-    YamlLimitError,
-    check_outputs,
-    load_map,
-    load_yaml,
-    map_files,
-    read_input,
-    save_map,
-)
+from merger.io.mapio import MAX_MAP_CELLS, MapFileError, check_outputs, load_map, map_files, save_map
+from merger.limits import MAX_YAML_BYTES, InputLimitError, YamlLimitError, load_yaml, read_input
 from merger.search import MAX_ROI_CELLS, RotationProblem, search
 from merger.search.refine import REMAP_MAX_COLS, _remap_mean
-
-from .subproc import run_capped
+from tests.paths import REAL_MAP
+from tests.subproc import run_capped
 
 BIN = Path(sys.executable).parent
 REFUSED_PEAK_BYTES = 300 << 20  # a refused input costs no more than starting the program
-OFFICE = Path(__file__).parent / "data" / "real-maps" / "turtlebot3_office.yaml"
+OFFICE = REAL_MAP
 
 
 def one_line_error(err: str, prog: str, *needles: str) -> str:
@@ -195,7 +184,7 @@ def test_a_stem_keeps_its_dots(tmp_path):
 
 
 def test_an_incomplete_recording_replaces_nothing(tmp_path):
-    from circsim.record import RerunRecorder
+    from circsim.record.rerun import RerunRecorder
 
     final = tmp_path / "run.rrd"
     final.write_bytes(b"the previous good recording")
@@ -209,7 +198,8 @@ def test_an_incomplete_recording_replaces_nothing(tmp_path):
 
 
 def test_a_sweep_folder_has_one_writer(tmp_path):
-    from circsim.sweep import SweepError, lock_out
+    from circsim.experiments.plan import SweepError
+    from circsim.experiments.store import lock_out
 
     held = lock_out(tmp_path)
     try:
@@ -222,7 +212,8 @@ def test_a_sweep_folder_has_one_writer(tmp_path):
 
 
 def test_a_malformed_resume_row_is_named_by_file_and_line(tmp_path):
-    from circsim.sweep import SweepError, read_rows
+    from circsim.experiments.plan import SweepError
+    from circsim.experiments.store import read_rows
 
     p = tmp_path / "runs.jsonl"
     p.write_text('{"run_key": "a"}\n{"run_key": "b", "torn\n[1]\n')
@@ -233,7 +224,7 @@ def test_a_malformed_resume_row_is_named_by_file_and_line(tmp_path):
 
 
 def test_grid_and_set_parse_values_alike():
-    from circsim.sweep import parse_grid
+    from circsim.experiments.plan import parse_grid
 
     base = load_scenario(bundled_scenarios()["scene1"])
     (axis,) = parse_grid(["center_error=1e-1,0.2"])
@@ -387,7 +378,7 @@ def test_a_huge_value_is_not_echoed_whole(tmp_path):
 def test_a_fifo_as_a_bag_is_refused_without_blocking(tmp_path):
     """`merger merge --bag x.mcap` on a FIFO waited forever in the bag reader."""
     pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
-    from merger.bagio import read_bag_maps
+    from merger.io.bagio import read_bag_maps
 
     os.mkfifo(tmp_path / "x.mcap")
     with pytest.raises(MapFileError, match=r"x\.mcap: expected a ROS bag file .*got a FIFO"):

@@ -6,7 +6,8 @@ Layout (an acyclic core; proofs in docs/design/search.md, cited as Lemma N):
 * :mod:`.measures` — one :class:`~.measures.Measure` per similarity measure: value and upper bound;
 * :mod:`.prepared` — a problem's lattice tables and bound tables;
 * :mod:`.kernels` — compiled exact counts, region bounds and the branch and bound;
-* :mod:`.problem` — :class:`RotationProblem` and :class:`Alignment`;
+* :mod:`.problem` — :class:`RotationProblem`, :class:`Alignment` (a frozen value; the guard beyond the
+  window, :class:`BeyondQuery`, answered lazily by :attr:`Alignment.beyond`);
 * :mod:`.engine` — the searches: ``spec`` (numpy definition), ``reference`` (compiled exhaustive),
   ``fast`` (branch and bound, the same answer), the exact runner-up and the guard beyond the window;
 * :mod:`.refine` — sub-cell refinement; :mod:`.caches` — the searcher cache and ``clear_all()``.
@@ -30,6 +31,7 @@ from .engine import (
 )
 from .prepared import translation_offsets
 from .problem import (
+    BEYOND_GUARDS,
     COARSE_STEP_DEG,
     FINE_HALF_WIDTH_DEG,
     FINE_STEP_DEG,
@@ -38,6 +40,7 @@ from .problem import (
     ROI_MIN_SUPPORT,
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
+    BeyondQuery,
     RotationProblem,
     angle_diff_deg,
     check_roi_cells,
@@ -48,6 +51,9 @@ from .problem import (
     wrap_deg,
 )
 from .refine import refine_alignment
+
+# the guards an Alignment's BeyondQuery names (Alignment.beyond runs one on first access)
+BEYOND_GUARDS.update(fast=beyond_window, reference=reference_beyond)
 
 SearchMethod = Callable[[RotationProblem], Alignment]
 SEARCH_METHODS: dict[str, SearchMethod] = {
@@ -78,7 +84,8 @@ def search(problem: RotationProblem, method: str = "reference") -> Alignment:
 
 __all__ = [
     "COARSE_STEP_DEG", "FINE_HALF_WIDTH_DEG", "FINE_STEP_DEG", "MAX_ROI_CELLS", "MAX_WINDOW_FRACTION",
-    "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "RotationProblem",
+    "BEYOND_GUARDS", "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery",
+    "RotationProblem",
     "angle_diff_deg", "beyond_window", "check_roi_cells", "check_window", "clear_all", "exact_runner_up",
     "fast_search", "fine_angles",
     "reference_beyond", "reference_search", "refine_alignment", "register_method", "runner_up", "search",

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..similarity import Counts, measure_fn
+from ..measures import Counts, measure_fn
 from . import caches
 from .kernels import (
     branch_and_bound,
@@ -42,6 +42,7 @@ from .problem import (
     MAX_WINDOW_FRACTION,
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
+    BeyondQuery,
     angle_diff_deg,
     fine_angles,
     floored,
@@ -300,7 +301,7 @@ def fast_search(problem) -> Alignment:
     return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, profile,
                      runner_up(profile, theta), window_m=problem.window_m,
                      translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_vals),
-                     _beyond=lambda: beyond_window(problem, best_value, (th_c, tc)),
+                     beyond_query=BeyondQuery(problem, best_value, (th_c, tc)),
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
@@ -402,7 +403,7 @@ def reference_search(problem) -> Alignment:
     return Alignment(theta, value, counts, problem.measure, "reference", problem.roi_m, profile,
                      runner_up(profile, theta), window_m=problem.window_m, translation_m=problem.offset_m(*tc),
                      cells=tc, fine=(angles, fine_vals),
-                     _beyond=lambda: reference_beyond(problem, best_value, (int(th_best), tc)),
+                     beyond_query=BeyondQuery(problem, best_value, (int(th_best), tc), "reference"),
                      evidence={"profile": "exact", "runner_up": "exact"})
 
 

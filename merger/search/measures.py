@@ -32,7 +32,7 @@ SIMILARITY, BIRK_CARPIN, NCC = 0, 1, 2
 
 @njit(cache=True, nogil=True)
 def value_of(code, floor, agr, dis, ff, sx, sy, n_cells):
-    """The measure's value from counts — the same floats as :mod:`merger.similarity` — or 0 when the
+    """The measure's value from counts — the same floats as :mod:`merger.measures` — or 0 when the
     support agr + dis is below ``floor``."""
     if agr + dis < floor:
         return 0.0

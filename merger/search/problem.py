@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import OccupancyGrid
-from ..similarity import MEASURES, Counts, Similarity, measure_fn
+from ..measures import MEASURES, Counts, Similarity, measure_fn
 from ..transform import extract_roi, roi_cells, rotated_roi
 
 
@@ -108,6 +108,9 @@ class RotationProblem:
         return floored(measure_fn(self.measure)(r, self.moving_roi(theta_deg)), self.min_support)
 
 
+_UNASKED = object()  # Alignment.beyond not computed yet
+
+
 def floored(sim: Similarity, floor: int) -> Similarity:
     """``sim`` with value 0 when its support agr̃ + dis is below ``floor`` (measures.value_of)."""
     if sim.counts.support >= floor:
@@ -116,34 +119,62 @@ def floored(sim: Similarity, floor: int) -> Similarity:
 
 
 @dataclass(frozen=True, eq=False)
+class BeyondQuery:
+    """The guard beyond the window, asked but not yet answered — a plain value.
+
+    Is there a coarse alignment outside the problem's translation window (within the guard's wider
+    ring) that scores above ``best_value`` and lies apart from the grid ``answer`` = (coarse θ°, (a, b)
+    cells)? ``guard`` names who answers it in :data:`BEYOND_GUARDS`: "fast" (the branch and bound,
+    :func:`merger.search.beyond_window`) or "reference" (exhaustive, :func:`merger.search.reference_beyond`).
+    """
+
+    problem: RotationProblem
+    best_value: float
+    answer: tuple
+    guard: str = "fast"
+
+    def answer_now(self) -> tuple[float, tuple[float, float], float] | None:
+        """Run the guard: ``(θ°, (tx, ty) m, coarse score)`` or None."""
+        b = BEYOND_GUARDS[self.guard](self.problem, self.best_value, self.answer)
+        return None if b is None else (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2]))
+
+
+# the guards a BeyondQuery names, registered by merger.search (its __init__) when the engine is loaded:
+# this module does not import the engine (the engine imports it)
+BEYOND_GUARDS: dict[str, Callable] = {}
+
+
+@dataclass(frozen=True, eq=False)
 class Alignment:
-    """Result of a rotation search, with its evidence.
+    """Result of a rotation search, with its evidence — a frozen value.
 
     theta_deg : the rotation of the moving map onto the reference, in [0, 360).
     score : the similarity at ``theta_deg`` on the ROI.
     counts : agr̃, dis and free/free at ``theta_deg`` on the ROI.
     profile : coarse scores at 0°, 1°, ..., 359°.
-    runner_up_deg, runner_up_score : best coarse angle at least 10° away from ``theta_deg``.
+    runner_up : (runner_up_deg, runner_up_score), the best coarse angle at least 10° away from ``theta_deg``.
     evidence : how exact the profile and the runner-up are — ``{"profile": "exact" | "upper_envelope",
         "runner_up": "exact" | "upper_envelope"}``: the reference gives both exactly; ``fast`` a profile
         that is an upper envelope (exact where evaluated, a true upper bound elsewhere, never above the
         best coarse value) and the runner-up read off it (at least the reference's runner-up score,
         never above the best); :func:`merger.search.exact_runner_up` computes the exact one.
+    beyond_query : the guard beyond the translation window, asked and not yet answered
+        (:class:`BeyondQuery`; None: no guard, e.g. the ``spec`` search).
 
-    A search may hand over the counts and the runner-up as callables (arguments ``_counts`` and
-    ``_runner_up``), each called once, on first access: a merge cycle decides on θ and the score
-    alone, so it does not pay for the rest of the evidence (the free/free count, the runner-up search)
-    unless someone reads it. Pickling resolves them.
+    One piece of evidence is computed lazily, behind one property: :attr:`beyond` runs the guard of
+    ``beyond_query`` once, on first access, under a lock (two threads may ask at once; the search behind
+    it is not thread-safe). A merge cycle reads it only for accepted results, so the others do not pay
+    for it. Pickling answers it first.
     """
 
     theta_deg: float
     score: float
-    _counts: Counts | Callable[[], Counts] = field(repr=False)
+    counts: Counts = field(repr=False)
     measure: str
     method: str
     roi_m: float
     profile: np.ndarray = field(repr=False)
-    _runner_up: tuple[float, float] | Callable[[], tuple[float, float]] = field(repr=False)
+    runner_up: tuple[float, float] = field(repr=False)
     window_m: float = 0.0
     translation_m: tuple[float, float] = (0.0, 0.0)
     cells: tuple[int, int] = (0, 0)
@@ -151,11 +182,13 @@ class Alignment:
     refined: bool = False
     grid_theta_deg: float | None = None
     grid_translation_m: tuple[float, float] | None = None
-    _beyond: tuple | None | Callable[[], tuple | None] = field(default=None, repr=False)
+    beyond_query: BeyondQuery | None = field(default=None, repr=False)
     evidence: dict = field(default_factory=lambda: {"profile": "exact", "runner_up": "exact"})
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_lock", threading.Lock())
+        object.__setattr__(self, "_beyond", _UNASKED)
+        object.__setattr__(self, "runner_up", (float(self.runner_up[0]), float(self.runner_up[1])))
         object.__setattr__(self, "translation_m", (float(self.translation_m[0]), float(self.translation_m[1])))
         if self.grid_theta_deg is None:
             object.__setattr__(self, "grid_theta_deg", self.theta_deg)
@@ -172,36 +205,21 @@ class Alignment:
         """t on the search grid (whole cells), before sub-cell refinement."""
         return self.grid_translation_m
 
-    def _resolve(self, name: str, convert):
-        value = getattr(self, name)
-        if callable(value):
-            with self._lock:  # two threads may ask at once; the search behind it is not thread-safe
-                value = getattr(self, name)
-                if callable(value):
-                    value = convert(value())
-                    object.__setattr__(self, name, value)
-        return value
-
-    @property
-    def counts(self) -> Counts:
-        """agr̃, dis and free/free at ``theta_deg`` on the ROI (computed on first access if deferred)."""
-        return self._resolve("_counts", lambda c: c)
-
     @property
     def beyond(self) -> tuple[float, tuple[float, float], float] | None:
         """A better alignment found outside the translation window, ``(θ°, (tx, ty) m, coarse score)``,
-        or None (see :func:`merger.search.beyond_window`); computed on first access when deferred."""
-        return self._resolve("_beyond", lambda b: None if b is None else
-                             (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2])))
-
-    @property
-    def runner_up(self) -> tuple[float, float]:
-        """(runner_up_deg, runner_up_score), computed on first access when the search deferred it."""
-        return self._resolve("_runner_up", lambda r: tuple(float(v) for v in r))
+        or None (see :func:`merger.search.beyond_window`): the answer to ``beyond_query``, computed once,
+        on first access, thread-safe."""
+        with self._lock:
+            if self._beyond is _UNASKED:
+                q = self.beyond_query
+                object.__setattr__(self, "_beyond", None if q is None else q.answer_now())
+            return self._beyond
 
     def __getstate__(self) -> dict:
+        beyond = self.beyond
         state = {k: v for k, v in self.__dict__.items() if k != "_lock"}
-        state["_counts"], state["_runner_up"], state["_beyond"] = self.counts, self.runner_up, self.beyond
+        state.update(_beyond=beyond, beyond_query=None)  # answered: the problem (both maps) is not carried
         return state
 
     def __setstate__(self, state: dict) -> None:

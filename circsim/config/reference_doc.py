@@ -1,0 +1,139 @@
+"""The scenario reference (``docs/scenario-reference.md``), generated from the loader's own checks.
+
+Every key, its default and what the loader expects come from :mod:`circsim.config.scenario`'s validators and
+defaults, so the page cannot drift from the code: ``circsim scenarios --reference`` prints it and
+``tests/circsim/config/test_reference_doc.py`` checks that the file in docs/ is current (regenerate it with
+``circsim scenarios --reference > docs/scenario-reference.md``).
+"""
+
+from __future__ import annotations
+
+import json
+
+from . import scenario as S
+from .validate import describe
+
+HEADER = """# Scenario reference
+
+Generated from the scenario loader's checks (`circsim scenarios --reference > docs/scenario-reference.md`;
+a test keeps it current). Every key is optional; a missing key takes the default shown (the default
+scenario: `circsim scenarios --show FILE` prints any scenario with every key resolved). Unknown keys,
+wrong types and out-of-range values are one-line errors naming the file, the key path and what was
+expected. `--set` and `circsim sweep --grid` take the same key paths, and these aliases:
+{aliases}.
+"""
+
+CONSTRAINTS = """
+## Constraints between keys (checked by the loader)
+
+- `laser.range_min_m` < `laser.range_max_m`; `slam.free_thresh` < `slam.occupied_thresh`.
+- `slam.size_m` > 4 × `robots.radius_m` (the circle fits in each robot's map, centred on its start);
+  `slam.size_m` / `slam.resolution_m` ≤ {cells} cells a side.
+- `merger.window_m` ≤ `merger.roi_m` / 4; `merger.roi_m` ≤ {roi:g} m.
+- `duration_s` / `dt_s` ≤ {ticks} ticks; `dt_s` ≤ `duration_s`; `duration_s` defaults to one tour of the
+  circle (2π·`robots.radius_m` / `robots.speed_mps`, rounded up).
+- `robots.names`: unique, at least two; `robots.start_angles_deg` and `robots.yaw_offsets_deg`: one per robot
+  (with names other than three and no start angles: spread evenly from 90°); {body:g} m ≤
+  `robots.body_radius_m` < `robots.radius_m`; `robots.speed_mps` ≤ {speed:g}; the robots' bodies do not
+  overlap at their starts.
+- With a rectangular `world.room`: `world.center`, the robots' circle plus their bodies, every pillar and
+  object lie inside the room. No pillar or object stands on a robot's start, nor on the robots' path: the
+  circle (as wide as their bodies) for online robots, which drive it without avoiding obstacles; each
+  robot's arc ±`robots.offline.max_deg` for offline ones. `world.room` is either `size_m` (and `center`:
+  the room is centred on `world.center` unless given) or `walls`, not both.
+- `center_error.magnitude_m` and each `center_error.per_robot` error at most `merger.roi_m` / 2;
+  `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
+  `magnitude_m` for those robots).
+- A scenario file is a regular file of at most 1 MiB whose YAML aliases expand to at most 2 Mi nodes and
+  characters (see docs/limits.md).
+"""
+
+
+# Defaults that follow another key: the table says which (the default scenario's value would mislead).
+DERIVED_DEFAULTS = {"world.room.center": "(`world.center`)"}
+
+
+def _default(defaults, path: list[str]):
+    node = defaults
+    for k in path:
+        if not isinstance(node, dict) or k not in node:
+            return "—"
+        node = node[k]
+    return json.dumps(node, ensure_ascii=False)
+
+
+def item_defaults(check) -> dict:
+    """Defaults of a list item's keys (a pillar, an object): its dataclass's, "required" for the others."""
+    import dataclasses
+
+    out = {k: "(required)" for k in getattr(check, "required", ())}
+    for f in dataclasses.fields(check.cls) if dataclasses.is_dataclass(getattr(check, "cls", None)) else ():
+        if f.default is not dataclasses.MISSING:
+            out.setdefault(f.name, S.plain_value(f.default))
+    return out
+
+
+def _rows(schema: dict, prefix: list[str], defaults, out: list) -> None:
+    for key, check in schema.items():
+        if key == "type":
+            continue
+        path = [*prefix, key]
+        sub = getattr(check, "schema", None)
+        item = getattr(check, "item", None)
+        if sub is not None and getattr(check, "expected", "") == "a mapping":
+            _rows(sub, path, defaults, out)
+        elif item is not None and getattr(item, "schema", None) is not None:
+            out.append((".".join(path), _default(defaults, path), describe(check)))
+            _rows(item.schema, [path[-1] + "[]"], item_defaults(item), out)
+            out[-len(item.schema):] = [(".".join(prefix) + "." + k, d, e) for k, d, e in out[-len(item.schema):]]
+        else:
+            d = defaults.get(key) if isinstance(defaults, dict) and prefix and prefix[-1].endswith("[]") else None
+            out.append((".".join(path), json.dumps(d, ensure_ascii=False) if d is not None
+                        else _default(defaults, path), describe(check)))
+
+
+def _sections():
+    """(section title, key prefix, schema) in the order of a scenario file."""
+    world = {k: v for k, v in S.WORLD_SCHEMA.items() if k != "room"}
+    return [
+        ("Top level", [], {"name": S.string, "description": S.string, "seed": S.integer(ge=0),
+                           "duration_s": S.POSITIVE, "dt_s": S.POSITIVE}),
+        ("world", ["world"], world),
+        ("world.room", ["world", "room"], S.ROOM_SCHEMA),
+        *[(f"world.objects[] with type: {kind}", ["world", "objects[]"], check)
+          for kind, check in S.OBJECT_SCHEMAS.items()],
+        ("robots", ["robots"], S.ROBOTS_SCHEMA),
+        ("laser", ["laser"], S.LASER_SCHEMA.schema),
+        ("slam", ["slam"], S.SLAM_SCHEMA.schema),
+        ("center_error", ["center_error"], {"magnitude_m": S.NON_NEGATIVE}),
+        ("network", ["network"], S.NETWORK_SCHEMA.schema),
+        ("merger", ["merger"], S.MERGER_SCHEMA.schema),
+        ("output", ["output"], S.OUTPUT_SCHEMA.schema),
+    ]
+
+
+def _cell(d: str) -> str:
+    """A default as code, or a note in words: ``"(required)"`` → (required)."""
+    if d.startswith('"(') and d.endswith(')"'):
+        return d[1:-1]
+    return "—" if d == "—" else f"`{d}`"
+
+
+def scenario_reference() -> str:
+    """The reference page as Markdown."""
+    sc = S.scenario_from_dict({}, default_name="FILE_STEM")
+    defaults = {**S.scenario_to_dict(sc), "name": "(the file name without .yaml)", "description": "",
+                "seed": sc.seed, "duration_s": "(one tour of the circle)", "dt_s": sc.dt_s}
+    aliases = ", ".join(f"`{a}` → `{k}`" for a, k in S.ALIASES.items())
+    parts = [HEADER.format(aliases=aliases)]
+    for title, prefix, schema in _sections():
+        rows: list = []
+        if callable(schema):  # an object type: its keys with the object's own defaults
+            _rows(schema.schema, prefix, item_defaults(schema), rows)
+        else:
+            _rows(schema, prefix, defaults, rows)
+        parts.append(f"\n## {title}\n\n| key | default | expected |\n|---|---|---|\n")
+        parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
+    parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS,
+                                    body=S.MIN_BODY_RADIUS_M, speed=S.MAX_SPEED_MPS))
+    return "".join(parts)

@@ -1,0 +1,469 @@
+"""Scenario files: YAML validated into typed, frozen dataclasses.
+
+A scenario is one experiment: the room and its objects, the robots on their circle, the laser, the
+SLAM, the center error, the network, the merger parameters and the outputs. Every section has
+defaults, so a scenario can be short (see ``circsim/scenarios/scene1.yaml``). Validation happens here,
+at the boundary: an unknown key, a wrong type or an out-of-range value raises :class:`ScenarioError`
+with one line naming the file, the key path and what was expected, e.g.
+``scene1.yaml: robots.speed_mps: expected a number > 0, got 'fast'``. Numbers follow YAML 1.2 (``1e1``
+is ten). Beyond types, the loader refuses what would run but could not mean anything: an empty file;
+a room that does not hold the center, the robots' circle (plus their bodies), a pillar or an object; a
+pillar or object on a robot's start; sizes that would not fit in memory or take hours (a grid above
+:data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
+``merger.limits.MAX_ROI_M``). A room given as ``walls`` (which need not close) has no inside to check.
+
+Here: the loader, the overrides and every section's schema (in one place, so the reference,
+:mod:`circsim.config.reference_doc`, is generated from it); the sections' types are in
+:mod:`circsim.config.types`, the scene's geometry checks in :mod:`circsim.config.geometry`.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from merger.limits import (
+    MAX_ROI_M,
+    MAX_YAML_BYTES,
+    MIN_ROI_CELLS,
+    InputLimitError,
+    load_yaml,
+    one_line,
+    read_input,
+)
+from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
+from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
+
+from .geometry import check_geometry
+from .types import (
+    SLAM_MODELS,
+    Box,
+    CenterErrorSpec,
+    Chair,
+    DriftConfig,
+    LaserConfig,
+    LogOddsConfig,
+    MatcherConfig,
+    NetworkConfig,
+    OdometryConfig,
+    OfflineMotion,
+    OutputSpec,
+    OverturnedChair,
+    Pillar,
+    RobotsSpec,
+    Room,
+    SlamConfig,
+    WorldSpec,
+)
+from .validate import (
+    Invalid,
+    bad,
+    boolean,
+    choice,
+    integer,
+    join,
+    number,
+    optional,
+    optional_path,
+    registered,
+    section,
+    seq,
+    string,
+    vec2,
+)
+
+MAX_GRID_CELLS = 4000  # cells on a side of a robot's grid (200 m at 5 cm): 64 MB of log-odds per robot
+MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
+MAX_BEAMS = 100_000
+MAX_SPEED_MPS = 2.0  # a robot mapping a room indoors; faster, its scans blur and the laser SLAM is meaningless
+MIN_BODY_RADIUS_M = 0.05  # a robot's body: at least 10 cm across (a 1 µm circle is a typo)
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be used; the message is one line: file, key path, expectation (control
+    characters of echoed user text escaped)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
+
+
+@dataclass(frozen=True)
+class MergerSettings:
+    """Merger parameters as data; the simulation loop builds ``merger.MergeParams`` from them.
+
+    window_m : translation window of the search, metres (±window_m on each axis around the given
+        centers, for centers known only roughly); 0 is the thesis's rotation-only search. At most
+        ``roi_m`` / 4.
+    refine : refine θ and t below the search grid (off: θ on the thesis's 0.1° grid, t in whole cells).
+    combine_orders : (strategy orders) the chosen placement is the mean of the accepted orders that agree
+        with the highest-Σν one within 10° and 0.2 m, when it verifies on the whole maps; off: the
+        highest-Σν order's own placement, the thesis's rule (``merger.MergeParams.combine_orders``).
+    correct_tol_deg, correct_tol_m : ground truth, not merger parameters: an accepted alignment is correct
+        when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
+    min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
+        holds, a partial team; null, the default, or more than the team: only with every teammate's map,
+        as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
+    strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
+        thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
+        the team assembled along a maximum spanning tree of the verified pairs).
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0, so no optimum rests on a handful of cells (``merger.MergeParams.roi_min_support``;
+        0: the thesis's measure as defined).
+    tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
+        agree, and the placement's whole-map fit must stand this many times above its best rival
+        (``merger.MergeParams``; :mod:`merger.team.evidence`).
+    share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
+        send, over the same simulated network; a robot adopts a received one only when it verifies on its
+        own maps and scores a higher Σν there than its own (:mod:`merger.team.shared`). Off (default): every
+        robot computes alone, as in the thesis.
+    """
+
+    roi_m: float = 8.0
+    measure: str = "similarity"
+    method: str = "fast"  # same answer as "reference" (property-tested; benchmarks/agree_search.py)
+    verification: str = "whole_map"
+    nu_min: float = 0.5
+    min_support: int = 200
+    roi_min_support: int = ROI_MIN_SUPPORT
+    tolerance_m: float = TOLERANCE_M
+    contrast_min: float = CONTRAST_MIN
+    score_min: float = 0.5
+    window_m: float = 0.5
+    refine: bool = True
+    correct_tol_deg: float = 2.0
+    correct_tol_m: float = 0.1
+    ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
+    combine_orders: bool = True
+    min_maps: int | None = None
+    strategy: str = "auto"
+    share_hypotheses: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario; build it with :func:`load_scenario` or :func:`scenario_from_dict`."""
+
+    name: str
+    description: str
+    seed: int
+    duration_s: float
+    dt_s: float
+    world: WorldSpec
+    robots: RobotsSpec
+    laser: LaserConfig
+    slam: SlamConfig
+    center_error: CenterErrorSpec
+    network: NetworkConfig
+    merger: MergerSettings
+    output: OutputSpec
+    source: str = field(default="<dict>", compare=False)
+    raw: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def with_overrides(self, assignments) -> Scenario:
+        """A copy with ``key.path=value`` assignments applied (values parsed as YAML) and re-validated."""
+        data = copy.deepcopy(self.raw)
+        pairs = []
+        for a in assignments:
+            key, sep, text = a.partition("=")
+            key = key.strip()
+            if not sep or not key:
+                raise ScenarioError(f"{self.source}: --set {a!r}: expected key.path=value")
+            try:
+                value = load_yaml(text)
+            except (yaml.YAMLError, ValueError, TypeError, RecursionError):
+                raise ScenarioError(f"{self.source}: --set {a}: value is not valid YAML") from None
+            key = resolve_alias(key, value)
+            _assign(data, key.split("."), value, f"{self.source}: --set {a}")
+            pairs.append((key, a))
+        try:
+            return _build(data, self.source)
+        except Invalid as e:
+            culprits = [a for k, a in pairs
+                        if e.path == k or e.path.startswith(k + ".") or k.startswith(e.path + ".")]
+            label = " ".join(f"--set {a}" for a in (culprits or [a for _, a in pairs]))
+            raise ScenarioError(f"{self.source} ({label}): {e.path}: {e.message}") from None
+
+
+# DESIGN.md and the issues spell some keys without their unit; the scenario keys carry it. `--set` and
+# `circsim sweep --grid` accept both (an alias of a section, `center_error`, only with a plain value).
+ALIASES = {"center_error": "center_error.magnitude_m", "network.latency": "network.latency_s",
+           "network.jitter": "network.jitter_s", "network.period": "network.period_s",
+           "latency": "network.latency_s"}
+
+
+def resolve_alias(key: str, value=None) -> str:
+    """The scenario key an alias stands for (``center_error`` → ``center_error.magnitude_m``); a mapping
+    assigned to ``center_error`` sets the section itself."""
+    if key in ALIASES and not isinstance(value, dict):
+        return ALIASES[key]
+    return key
+
+
+def load_scenario(path) -> Scenario:
+    """Read and validate a scenario file."""
+    path = Path(path)
+    label = path.name
+    try:
+        data = load_yaml(read_input(path, MAX_YAML_BYTES, "scenario file").decode("utf-8"))
+    except OSError as e:
+        raise ScenarioError(f"{label}: cannot read file ({e.strerror or e})") from None
+    except InputLimitError as e:
+        raise ScenarioError(str(e)) from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{label}: not a text file (expected a YAML scenario)") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = str(getattr(e, "problem", None) or e).splitlines()[0]
+        raise ScenarioError(f"{label}: invalid YAML{where}: {problem}") from None
+    except (ValueError, TypeError, RecursionError) as e:  # e.g. a date 2001-13-01, nesting too deep
+        raise ScenarioError(f"{label}: invalid YAML: {type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}") \
+            from None
+    if data is None:  # an empty or comment-only file would silently run the default scene
+        raise ScenarioError(f"{label}: empty scenario (expected a mapping of scenario sections: "
+                            f"{', '.join(TOP_KEYS)})")
+    return scenario_from_dict(data, source=label, default_name=path.stem)
+
+
+def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenario") -> Scenario:
+    """Validate a plain mapping (as parsed from YAML) into a :class:`Scenario`."""
+    if isinstance(data, dict) and "name" not in data:
+        data = {"name": default_name, **data}
+    try:
+        return _build(data, source)
+    except Invalid as e:
+        raise ScenarioError(f"{source}: {e.path}: {e.message}") from None
+
+
+def scenario_to_dict(sc: Scenario) -> dict[str, Any]:
+    """The fully resolved scenario as plain JSON-able data (valid input to :func:`scenario_from_dict`)."""
+    return plain_value(sc)
+
+
+def bundled_scenarios() -> dict[str, Path]:
+    """The scenarios shipped with circsim, by name (file stem)."""
+    return {p.stem: p for p in sorted(SCENARIO_DIR.glob("*.yaml"))}
+
+
+# --- validation -------------------------------------------------------------------------------------
+POSITIVE, NON_NEGATIVE = number(gt=0), number(ge=0)
+OBJECT_SCHEMAS = {
+    "chair": section(Chair, {"type": string, "center": vec2(), "yaw_deg": number(), "leg_spacing_m": POSITIVE,
+                             "leg_radius_m": POSITIVE}, required=("center",)),
+    "overturned_chair": section(OverturnedChair, {"type": string, "center": vec2(), "yaw_deg": number(),
+                                                  "seat_m": POSITIVE, "back_m": POSITIVE}, required=("center",)),
+    "box": section(Box, {"type": string, "center": vec2(), "size_m": vec2(gt=0), "yaw_deg": number()},
+                   required=("center",)),
+}
+
+
+def _object(v, path):
+    kind = v.get("type") if isinstance(v, dict) else None
+    if not isinstance(kind, str) or kind not in OBJECT_SCHEMAS:  # (a list or mapping is not a type name)
+        raise Invalid(join(path, "type") if isinstance(v, dict) else path,
+                      f"expected an object type, one of {', '.join(map(repr, OBJECT_SCHEMAS))}, got {kind!r}")
+    return OBJECT_SCHEMAS[kind](v, path)
+
+
+_SEG = seq(number(), "a wall [ax, ay, bx, by] of four numbers", length=4)
+ROOM_SCHEMA = {"size_m": vec2(gt=0), "center": vec2(), "walls": seq(_SEG, "a list of walls [ax, ay, bx, by]", 1)}
+_PILLAR = section(Pillar, {"center": vec2(), "radius": POSITIVE}, required=("center",))
+WORLD_SCHEMA = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
+          "objects": seq(_object, "a list of objects")}
+ROBOTS_SCHEMA = {"names": seq(string, "a list of robot names", 1), "radius_m": POSITIVE,
+           "start_angles_deg": seq(number(), "a list of numbers"), "heading": choice("center", "tangent"),
+           "yaw_offsets_deg": seq(number(), "a list of numbers"), "speed_mps": POSITIVE,
+           "motion": choice("online", "offline"),
+           "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": POSITIVE}),
+           "body_radius_m": POSITIVE}
+LASER_SCHEMA = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
+                               "range_max_m": POSITIVE,
+                               "range_min_m": NON_NEGATIVE, "rate_hz": POSITIVE, "noise_std_m": NON_NEGATIVE,
+                               "dropout": number(ge=0, lt=1), "noise_rel": number(ge=0, lt=1)})
+SLAM_SCHEMA = section(SlamConfig, {
+    "model": choice(*SLAM_MODELS), "resolution_m": POSITIVE, "size_m": POSITIVE,
+    "odometry": section(OdometryConfig, {f"alpha{k}": NON_NEGATIVE for k in range(1, 6)}),
+    "matcher": section(MatcherConfig, {"linear_window_m": NON_NEGATIVE, "angular_window_deg": number(ge=0, le=180),
+                                       "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": POSITIVE,
+                                       "min_log_odds": NON_NEGATIVE}),
+    "drift": section(DriftConfig, {"xy_m_per_m": NON_NEGATIVE, "yaw_deg_per_m": NON_NEGATIVE}),
+    "log_odds": section(LogOddsConfig, {"hit": POSITIVE, "miss": number(lt=0), "clamp": POSITIVE}),
+    "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": POSITIVE,
+    "linear_update_m": NON_NEGATIVE, "angular_update_rad": NON_NEGATIVE})
+NETWORK_SCHEMA = section(NetworkConfig, {"period_s": POSITIVE, "latency_s": NON_NEGATIVE, "jitter_s": NON_NEGATIVE,
+                                   "loss": number(ge=0, lt=1)})
+MERGER_SCHEMA = section(MergerSettings, {
+    "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
+    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score", "contrast"),
+    "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
+    "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
+    "window_m": NON_NEGATIVE, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
+    "combine_orders": boolean,
+    "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
+    "strategy": choice("auto", "orders", "tree"), "share_hypotheses": boolean})
+OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITIVE, "json": optional_path,
+                               "merged_log_period_s": optional(NON_NEGATIVE)})
+TOP_KEYS = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
+        "center_error", "network", "merger", "output")
+
+
+def _build(data, source: str) -> Scenario:
+    if not isinstance(data, dict):
+        raise bad("(top level)", "a mapping of scenario sections", data)
+    for k in data:
+        if k not in TOP_KEYS:
+            raise Invalid(str(k), f"unknown key; expected one of {', '.join(TOP_KEYS)}")
+    robots = _robots(data.get("robots"))
+    laser = LASER_SCHEMA(data.get("laser"), "laser")
+    if laser.range_min_m >= laser.range_max_m:
+        raise bad("laser.range_min_m", f"a number < laser.range_max_m ({laser.range_max_m:g})",
+                  laser.range_min_m)
+    slam = SLAM_SCHEMA(data.get("slam"), "slam")
+    if slam.free_thresh >= slam.occupied_thresh:
+        raise bad("slam.free_thresh", f"a number < slam.occupied_thresh ({slam.occupied_thresh:g})",
+                  slam.free_thresh)
+    if slam.size_m <= 4 * robots.radius_m:  # the map is centred on the start pose, on the circle
+        raise bad("slam.size_m", f"a number > 4 * robots.radius_m ({4 * robots.radius_m:g}) so that the "
+                  "robot's circle fits in its map", slam.size_m)
+    cells = slam.size_m / slam.resolution_m
+    if cells > MAX_GRID_CELLS:
+        raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
+                  f"slam.resolution_m = {cells:.0f})", slam.size_m)
+    merger = MERGER_SCHEMA(data.get("merger"), "merger")
+    roi_cells = merger.roi_m / slam.resolution_m
+    if not MIN_ROI_CELLS <= roi_cells <= MAX_ROI_CELLS:
+        raise bad("merger.roi_m", f"a side of {MIN_ROI_CELLS} to {MAX_ROI_CELLS} cells of slam.resolution_m "
+                  f"({slam.resolution_m:g} m): {MIN_ROI_CELLS * slam.resolution_m:g} to "
+                  f"{min(MAX_ROI_M, MAX_ROI_CELLS * slam.resolution_m):g} m", merger.roi_m)
+    top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
+    if merger.window_m > top + 1e-12:
+        raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
+                  f"{merger.roi_m:g} m)", merger.window_m)
+    one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
+    duration_s = POSITIVE(data.get("duration_s", one_tour), "duration_s")
+    dt_s = POSITIVE(data.get("dt_s", 0.1), "dt_s")
+    if dt_s > duration_s:
+        raise bad("dt_s", f"a number <= duration_s ({duration_s:g} s): at least one tick", dt_s)
+    if duration_s / dt_s > MAX_TICKS:
+        raise bad("duration_s", f"at most {MAX_TICKS} ticks of dt_s ({dt_s:g} s): a number <= "
+                  f"{MAX_TICKS * dt_s:g}", duration_s)
+    world = _world(data.get("world"))
+    check_geometry(world, robots)
+    return Scenario(
+        name=string(data.get("name", "scenario"), "name"),
+        description=string(data.get("description", ""), "description"),
+        seed=integer(ge=0)(data.get("seed", 0), "seed"),
+        duration_s=duration_s, dt_s=dt_s, world=world, robots=robots, laser=laser, slam=slam,
+        center_error=_center_error(data.get("center_error"), robots.names, merger.roi_m),
+        network=NETWORK_SCHEMA(data.get("network"), "network"), merger=merger,
+        output=OUTPUT_SCHEMA(data.get("output"), "output"), source=source, raw=copy.deepcopy(data))
+
+
+def _world(v) -> WorldSpec:
+    w = section(lambda **kw: kw, WORLD_SCHEMA)(v, "world")  # room is checked below: it needs the center
+    center = w.get("center", WorldSpec.center)
+    room = w.get("room") or {}
+    if not isinstance(room, dict):
+        raise bad("world.room", "a mapping with size_m and center, or walls", room)
+    r = section(lambda **kw: kw, ROOM_SCHEMA)(room, "world.room")
+    if "walls" in r and ("size_m" in r or "center" in r):
+        raise Invalid("world.room", "expected either size_m (and center) or walls, not both")
+    room_obj = Room(None, None, r["walls"]) if "walls" in r else \
+        Room(r.get("size_m", Room.size_m), r.get("center", center))
+    return WorldSpec(center, room_obj, w.get("pillars", ()), w.get("objects", ()))
+
+
+def _robots(v) -> RobotsSpec:
+    r = section(lambda **kw: kw, ROBOTS_SCHEMA)(v, "robots")
+    names = r.get("names", RobotsSpec.names)
+    n = len(names)
+    if len(set(names)) != n:
+        raise bad("robots.names", "unique robot names", list(names))
+    if n < 2:
+        raise bad("robots.names", "at least two robots (merging needs two maps)", list(names))
+    if "names" in r and n != 3 and "start_angles_deg" not in r:
+        r["start_angles_deg"] = tuple((90.0 + k * 360.0 / n) % 360.0 for k in range(n))  # in [0, 360)
+    r.setdefault("yaw_offsets_deg", (0.0,) * n)
+    for key in ("start_angles_deg", "yaw_offsets_deg"):
+        if key in r and len(r[key]) != n:
+            raise bad(f"robots.{key}", f"a list of {n} numbers (one per robot)", list(r[key]))
+    spec = RobotsSpec(**r)
+    if spec.body_radius_m >= spec.radius_m:
+        raise bad("robots.body_radius_m", f"a number < robots.radius_m ({spec.radius_m:g})",
+                  spec.body_radius_m)
+    if spec.body_radius_m < MIN_BODY_RADIUS_M:
+        raise bad("robots.body_radius_m", f"a number >= {MIN_BODY_RADIUS_M:g} (a robot's body radius, metres)",
+                  spec.body_radius_m)
+    if spec.speed_mps > MAX_SPEED_MPS:
+        raise bad("robots.speed_mps", f"a number in (0, {MAX_SPEED_MPS:g}] (metres per second of a robot "
+                  "mapping indoors)", spec.speed_mps)
+    starts = [(spec.radius_m * math.cos(math.radians(a)), spec.radius_m * math.sin(math.radians(a)))
+              for a in spec.start_angles_deg]
+    for i in range(n):
+        for j in range(i):
+            d = math.dist(starts[i], starts[j])
+            if d < 2 * spec.body_radius_m:
+                raise bad("robots.start_angles_deg", f"robots that do not overlap at their starts: "
+                          f"{names[j]} and {names[i]} are {d:.3f} m apart, bodies of radius "
+                          f"{spec.body_radius_m:g} m (fewer robots, a larger robots.radius_m or other angles)",
+                          list(spec.start_angles_deg))
+    return spec
+
+
+def _center_error(v, names, roi_m: float) -> CenterErrorSpec:
+    """Errors up to half the ROI side: farther, the ROI about the given center misses the true one (and a
+    kilometre's error asked the merge canvas for terabytes)."""
+    top = roi_m / 2
+    r = section(lambda **kw: kw, {"magnitude_m": number(ge=0, le=top), "per_robot": lambda x, p: x})(
+        v, "center_error")
+    per = r.get("per_robot") or {}
+    if not isinstance(per, dict):
+        raise bad("center_error.per_robot", "a mapping robot name -> [dx, dy]", per)
+    out = {}
+    for k, x in per.items():
+        if k not in names:
+            raise bad(f"center_error.per_robot.{k}", f"a robot name (one of {', '.join(names)})", k)
+        out[k] = vec2()(x, f"center_error.per_robot.{k}")
+        if math.hypot(*out[k]) > top:
+            raise bad(f"center_error.per_robot.{k}", f"an error [dx, dy] of at most {top:g} m (half of "
+                      f"merger.roi_m)", list(out[k]))
+    return CenterErrorSpec(r.get("magnitude_m", 0.0), out)
+
+
+def _assign(data: dict, keys: list[str], value, label: str) -> None:
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.get(k) if isinstance(node, dict) else None
+        if nxt is None:
+            nxt = node[k] = {}
+        if not isinstance(nxt, dict):
+            raise ScenarioError(f"{label}: {'.'.join(keys[:i + 1])}: expected a mapping to set keys in, "
+                                f"got {nxt!r}")
+        node = nxt
+    node[keys[-1]] = value
+
+
+def plain_value(v):
+    if is_dataclass(v):
+        out = {"type": v.type} if hasattr(type(v), "type") else {}
+        for f in fields(v):
+            if f.compare:
+                out[f.name] = plain_value(getattr(v, f.name))
+        if isinstance(v, Room):
+            keep = ("walls",) if v.size_m is None else ("size_m", "center")
+            out = {k: out[k] for k in keep}
+        return out
+    if isinstance(v, tuple | list):
+        return [plain_value(x) for x in v]
+    if isinstance(v, dict):
+        return {str(k): plain_value(x) for k, x in v.items()}
+    return v

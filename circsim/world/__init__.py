@@ -1,0 +1,3 @@
+"""The simulated world: the room and its objects in pymunk (:mod:`.world`), the robots' paths on the
+circle (:mod:`.motion`) and the 2D laser (:mod:`.laser`). The only package of ours that imports pymunk.
+"""

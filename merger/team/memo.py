@@ -1,0 +1,83 @@
+"""Results of the merger's pure computations shared by callers that hold the same maps.
+
+Every search and every pair verification is a pure function of its maps (content, geometry, center) and
+parameters. The robots of one simulated team hold the same teammates' maps, so they compute the same pair
+searches: with 8 robots, each pair of map versions is searched by all 8 (:mod:`merger.team.tree`), and in the
+thesis's orders (:mod:`merger.team.orders`) a pair that opens an order is searched by every robot that holds it.
+A :class:`Memo` computes each once and hands the same result to the others.
+
+It changes no result (the value is the one the caller would compute: the computations are
+deterministic), only the time a simulation takes. So that a robot's reported merge cost stays the cost it
+would pay alone, each entry keeps the wall time its computation took, and a caller that takes a stored
+result is *charged* that time (:attr:`Memo.charged_ms`, read and reset by the merge cycle;
+:attr:`merger.team.orders.TeamMergeResult.cost_ms`).
+
+Keys are map versions or content digests (:func:`map_key`), never object identities or scans; the memo
+is bounded in entries (an entry may hold grids: an alignment's deferred evidence).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Hashable
+
+from ..caches import BoundedCache, array_digest
+
+MEMO_ENTRIES = 256  # a team of 8 holds 28 pairs; a few map versions of each
+
+
+def grid_key(grid) -> tuple:
+    """A content key of an occupancy grid: its states' digest, shape, resolution and origin."""
+    return (array_digest(grid.states), grid.states.shape, float(grid.resolution),
+            (float(grid.origin[0]), float(grid.origin[1])))
+
+
+def map_key(m) -> tuple:
+    """A key of a :class:`merger.team.orders.MapInput`: its owner, its ``version`` when it has one (by contract a
+    version identifies the owner's grid: a map message's stamp), else its grid's content; and its center."""
+    ident = ("version", m.version) if m.version is not None else grid_key(m.grid)
+    return (m.name, ident, (float(m.center[0]), float(m.center[1])))
+
+
+class Memo:
+    """A bounded store of computed results with their cost (see the module documentation)."""
+
+    def __init__(self, max_entries: int = MEMO_ENTRIES) -> None:
+        # entries are counted, not their bytes: values are merger records (small; their grids are shared)
+        self._cache = BoundedCache(max_entries, 2**62)
+        self.charged_ms = 0.0  # time of the stored results handed out since the last reset
+        self.computed = 0
+        self.shared = 0
+        self._lock = threading.Lock()  # the counters: a cycle's searches run on threads (merger.team.pool)
+
+    def __len__(self) -> int:
+        return len(self._cache)
+
+    def get(self, key: Hashable, compute: Callable[[], object]):
+        """The stored value of ``key``, or ``compute()`` (stored with its wall time). A stored value
+        charges its computation's time to :attr:`charged_ms`."""
+        hit = self._cache.get(key)
+        if hit is not None:
+            value, ms = hit
+            with self._lock:
+                self.charged_ms += ms
+                self.shared += 1
+            return value
+        t0 = time.perf_counter()
+        value = compute()
+        self._cache.put(key, (value, (time.perf_counter() - t0) * 1e3))
+        with self._lock:
+            self.computed += 1
+        return value
+
+    def take_charged_ms(self) -> float:
+        """The charged time since the last call, and reset it."""
+        with self._lock:
+            ms, self.charged_ms = self.charged_ms, 0.0
+        return ms
+
+    def clear(self) -> None:
+        self._cache.clear()
+        self.charged_ms = 0.0
+        self.computed = self.shared = 0

@@ -1,0 +1,571 @@
+"""Team merging: merge orders, verification on whole maps, choice of the hypothesis (thesis 3.3.1).
+
+For three maps the thesis evaluates three orders (3.10): a pair (1,2), (1,3) or (2,3) is aligned first,
+then the third map is aligned onto the superposition of the pair. Here an *order* is a sequence of map
+indices; its first two are the first pair and every further map is aligned onto the superposition of
+all maps before it. :func:`merge_orders` gives one order per pair, so N maps give N(N−1)/2 orders (the
+thesis's three for N = 3) and nothing below assumes N = 3. The maps are ranked by name, so every robot
+of a team evaluates the same orders (and a simulation computes each once: :mod:`merger.memo`).
+
+Every order is expressed in the frame of map 0 (the robot that merges) and verified on the whole maps:
+ν_ij = ω̃(m*_i, m*_j) for every pair, accepted when all pass (:mod:`merger.verify`). Among accepted
+orders the highest Σν wins (the thesis's rule). Beyond the thesis (``combine_orders``, on by default):
+the accepted orders that place every map within 10° and 0.2 m of the winner are the same hypothesis
+measured along different orders, and the chosen placement is their mean — verified again on the whole
+maps like an order, else the winner's own placement stands (:func:`_combine`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..grid import OccupancyGrid
+from ..search import (
+    ROI_MIN_SUPPORT,
+    Alignment,
+    RotationProblem,
+    angle_diff_deg,
+    check_window,
+    search,
+    wrap_deg,
+)
+from ..transform import canvas, footprint, overlap, paste, rotation, warp_grid
+from .ambiguity import PairAmbiguity, resolve
+from .evidence import CONTRAST_MIN, TOLERANCE_M
+from .memo import Memo, map_key
+from .pool import parallel_map
+from .superpose import fuse, superpose
+from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
+
+VERIFICATIONS = ("whole_map", "roi_score", "contrast")
+AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
+AMBIGUOUS_DEG = 10.0  # ... elsewhere: more than this apart in angle
+AMBIGUOUS_M = 0.2  # ... or more than this apart in translation
+
+
+@dataclass(frozen=True)
+class MergeParams:
+    """Parameters of a merge cycle.
+
+    roi_m : side of the square region of interest around the center, metres.
+    measure : similarity maximized by the search ("similarity", "birk_carpin" or "ncc").
+    method : search method name (see :data:`merger.search.SEARCH_METHODS`).
+    verification : "whole_map" — ω̃ on whole maps with ``nu_min`` and ``min_support`` (the similarity
+        method); "roi_score" — every alignment's ROI score ≥ ``score_min`` (the thesis's
+        cross-correlation method, which had only a threshold on the correlation coefficient); "contrast" —
+        for maps from independent runs (real maps): every pair's whole-map fit within ``tolerance_m`` must
+        stand at least ``contrast_min`` times above its best rival placement at least 10° away, on at
+        least ``min_support`` occupied cells (:mod:`merger.evidence`; measured on real maps in
+        docs/merging-real-maps.md). Orders are still ranked by Σν.
+    ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted
+        order places some map more than 10° or 0.2 m away from the chosen order's placement is rejected as
+        ambiguous unless the chosen order's mean ν exceeds that order's by at least this margin. A wider
+        search finds more spurious peaks: on the point-symmetric scene 1, a half turn plus a translation
+        of ~0.35 m passes whole-map verification (ν ≈ 0.7) beside the correct order (ν ≈ 0.78).
+    window_m : translation window, metres: every pair is searched over rotations and translations
+        within ±window_m on each axis (:mod:`merger.search`), for centers known only roughly; 0 is the
+        thesis's rotation-only search. At most a quarter of ``roi_m``.
+    refine : refine θ and t below the search grid (:func:`merger.search.refine_alignment`); off
+        reproduces the thesis's 0.1° grid answer exactly.
+    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
+        below it scores 0 (:class:`merger.search.RotationProblem`), so a wide window cannot find an
+        optimum resting on a handful of cells (on sparse real maps with W ≥ 1.5 m, placements on 2–22
+        cells scored ≈ 1 above the true one). 50 cells = 2.5 m of wall at 5 cm.
+    combine_orders : the chosen placement is the mean of the accepted orders that agree with the
+        highest-Σν order within 10° and 0.2 m on every map, when that mean passes whole-map verification
+        (:func:`_combine`); off: the highest-Σν order's own placement (the thesis's rule). With the
+        thesis's sparse maps (five scans per map) the Σν of a correct order and of one 2° off differed by
+        less than ν can resolve on 200 cells, and the first of equal sums was sometimes the wrong one.
+    """
+
+    roi_m: float = 8.0
+    measure: str = "similarity"
+    method: str = "fast"
+    verification: str = "whole_map"
+    nu_min: float = 0.5
+    min_support: int = 200
+    score_min: float = 0.5
+    window_m: float = 0.5
+    refine: bool = True
+    ambiguity_margin: float | None = None
+    combine_orders: bool = True
+    roi_min_support: int = ROI_MIN_SUPPORT
+    tolerance_m: float = TOLERANCE_M
+    contrast_min: float = CONTRAST_MIN
+
+    @property
+    def margin(self) -> float:
+        """The ambiguity margin in force: ``ambiguity_margin``, or by default 0.05 with a translation
+        window and 0 without one (the thesis's rule: the highest Σν wins)."""
+        if self.ambiguity_margin is not None:
+            return float(self.ambiguity_margin)
+        return AMBIGUITY_MARGIN if self.window_m > 0 else 0.0
+
+    def __post_init__(self) -> None:
+        if self.verification not in VERIFICATIONS:
+            raise ValueError(f"verification must be one of {VERIFICATIONS}, got {self.verification!r}")
+        if not (isinstance(self.roi_m, (int, float)) and math.isfinite(self.roi_m) and self.roi_m > 0):
+            raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m!r}")
+        for name in ("nu_min", "score_min"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and -1.0 <= v <= 1.0):
+                raise ValueError(f"{name} must be a finite number in [-1, 1], got {v!r}")
+        if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
+                or self.min_support < 0:
+            raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
+        if isinstance(self.roi_min_support, bool) or not isinstance(self.roi_min_support, (int, np.integer)) \
+                or self.roi_min_support < 0:
+            raise ValueError(f"roi_min_support must be an integer >= 0, got {self.roi_min_support!r}")
+        check_window(self.window_m, self.roi_m)
+        for name, lo in (("tolerance_m", 0.0), ("contrast_min", 0.0)):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        m = self.ambiguity_margin
+        if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
+            raise ValueError(f"ambiguity_margin must be a number in [0, 1] (or None), got {m!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class MapInput:
+    """A map to merge: its owner's name, the grid (in the owner's frame) and the center in that frame.
+
+    ``version`` (optional, hashable; e.g. the map message's stamp) identifies this grid and center among
+    the owner's maps: with versions, :func:`merge_team` can reuse a pair alignment of unchanged maps
+    from an earlier cycle (its ``reuse`` argument)."""
+
+    name: str
+    grid: OccupancyGrid
+    center: tuple[float, float]
+    version: object = None
+
+    def __post_init__(self) -> None:
+        try:
+            ok = len(self.center) == 2 and all(math.isfinite(float(v)) for v in self.center)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"map {self.name!r}: center must be two finite numbers (x, y), got {self.center!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class OrderResult:
+    """One merge order's hypothesis and its verification.
+
+    theta_deg : per map name, the rotation onto map 0's frame (map 0 itself: 0).
+    translation_m : per map name, the translation t onto map 0's frame: x_0 = c_0 + t + R(θ)(x − c)
+        (all (0, 0) for a rotation-only search).
+    steps : (moving map name, Alignment) in the order they were searched; angles there are onto the
+        superposition's frame (the order's first map).
+    nu : per pair "A|B", the whole-map ω̃ (or the ROI score with verification "roi_score").
+    """
+
+    order: tuple[str, ...]
+    theta_deg: dict[str, float]
+    steps: tuple[tuple[str, Alignment], ...]
+    checks: dict[str, Verification]
+    accepted: bool
+    reason: str
+    translation_m: dict[str, tuple[float, float]] = field(default_factory=dict)
+    combined: tuple[tuple[str, ...], ...] = ()  # the accepted orders whose mean placement this is (_combine)
+
+    def translation(self, name: str) -> tuple[float, float]:
+        return self.translation_m.get(name, (0.0, 0.0))
+
+    @property
+    def nu(self) -> dict[str, float]:
+        return {k: v.nu for k, v in self.checks.items()}
+
+    @property
+    def nu_sum(self) -> float:
+        return float(sum(v.nu for v in self.checks.values()))
+
+    def angle_errors_deg(self, truth_deg: dict[str, float]) -> dict[str, float]:
+        """|wrap(θ − θ*)| per map against ground-truth rotations onto map 0's frame."""
+        return {k: abs(angle_diff_deg(self.theta_deg[k], truth_deg[k])) for k in self.theta_deg}
+
+    def to_dict(self) -> dict:
+        return {
+            "order": list(self.order), "theta_deg": dict(self.theta_deg),
+            "translation_m": {k: list(self.translation(k)) for k in self.theta_deg}, "accepted": self.accepted,
+            "reason": self.reason, "nu": self.nu, "nu_sum": self.nu_sum,
+            "support": {k: v.support for k, v in self.checks.items()},
+            "steps": [{"moving": n, **a.to_dict()} for n, a in self.steps],
+            "combined": [list(o) for o in self.combined],
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class TeamMergeResult:
+    """All orders of one merge cycle, the chosen one (if any) and the merged map in map 0's frame."""
+
+    frame: str
+    orders: tuple[OrderResult, ...]
+    chosen: OrderResult | None
+    merged: OccupancyGrid | None = field(repr=False)
+    layers: dict[str, OccupancyGrid] = field(repr=False)
+    wall_ms: float = 0.0
+    ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
+    ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.ambiguity`)
+    charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.memo`)
+
+    @property
+    def cost_ms(self) -> float:
+        """What the cycle costs a robot computing alone: its wall time and the time of the shared results
+        it took (:mod:`merger.memo`)."""
+        return self.wall_ms + self.charged_ms
+
+    @property
+    def reason(self) -> str:
+        """Why the cycle was not accepted ("" when it was)."""
+        if self.accepted:
+            return ""
+        return self.ambiguity or self.top.reason
+
+    @property
+    def accepted(self) -> bool:
+        return self.chosen is not None
+
+    @property
+    def top(self) -> OrderResult:
+        """The best hypothesis of the cycle, accepted or not (highest Σν)."""
+        return self.chosen or max(self.orders, key=lambda o: o.nu_sum)
+
+    @property
+    def rejected(self) -> tuple[OrderResult, ...]:
+        return tuple(o for o in self.orders if not o.accepted)
+
+    def to_dict(self) -> dict:
+        return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
+                "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
+                "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
+                "chosen": self.chosen.to_dict() if self.chosen else None,
+                "orders": [o.to_dict() for o in self.orders]}
+
+
+def merge_orders(n: int, names=None) -> list[tuple[int, ...]]:
+    """One order per pair (a, b), a < b: the pair first, then the remaining maps by index. With ``names``
+    (the maps' names by index) the maps are ranked by name instead of by index: every robot then
+    evaluates the same orders (its own map is not always first), so a simulation's robots share their
+    searches (:mod:`merger.memo`); each order is still expressed in the merging robot's frame."""
+    if n < 2:
+        raise ValueError(f"merging needs at least two maps, got {n}")
+    rank = list(range(n)) if names is None else sorted(range(n), key=lambda k: names[k])
+    return [(rank[a], rank[b], *[rank[k] for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
+
+
+def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
+    """What the search of ``mov`` onto ``ref`` depends on (None: the maps carry no version)."""
+    if ref.version is None or mov.version is None:
+        return None
+    return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
+            params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin,
+            params.roi_min_support)
+
+
+Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
+ORIGIN: tuple[float, float] = (0.0, 0.0)
+
+
+def compose(onto_first: dict[int, Placement], first: int, base: int) -> dict[int, Placement]:
+    """Placements onto the first map's frame → onto map ``base``'s frame.
+
+    With x_f = c_f + t_fk + R(θ_fk)(x_k − c_k) for every k: θ_bk = θ_fk − θ_fb and
+    t_bk = R(−θ_fb)(t_fk − t_fb)."""
+    th_b, t_b = onto_first[base]
+    r = rotation(-th_b)
+    out = {}
+    for k, (th, t) in onto_first.items():
+        d = r @ (np.asarray(t, np.float64) - np.asarray(t_b, np.float64))
+        out[k] = (wrap_deg(th - th_b), (float(d[0]), float(d[1])))
+    out[base] = (0.0, ORIGIN)
+    return out
+
+
+def shifted(center, t) -> tuple[float, float]:
+    """c + t (the point where a placed map's center lands)."""
+    if t[0] == 0.0 and t[1] == 0.0:
+        return (float(center[0]), float(center[1]))
+    return (float(center[0]) + float(t[0]), float(center[1]) + float(t[1]))
+
+
+class Warps:
+    """The maps of one merge cycle rotated onto another map's cell lattice, each warp computed once.
+
+    A warp covers only the rotated map's footprint (:func:`merger.transform.footprint`); every cell
+    outside it is unknown. One warp therefore serves every canvas on that lattice (pasting it is exact),
+    and a pair's whole-map ω̃ only needs the cells where the two footprints overlap (unknown cells count
+    in neither agr̃ nor dis). Orders that share a rotation share its warp and its pair checks.
+    """
+
+    def __init__(self, maps: list[MapInput]) -> None:
+        self.maps = maps
+        self._known: dict[int, OccupancyGrid] = {}
+        self._warps: dict[tuple[int, int, float], OccupancyGrid] = {}
+        self._checks: dict[tuple, Verification] = {}
+
+    def known(self, k: int) -> OccupancyGrid:
+        """Map ``k``'s known cells (:meth:`OccupancyGrid.known_part`): what is warped and placed."""
+        if k not in self._known:
+            self._known[k] = self.maps[k].grid.known_part()
+        return self._known[k]
+
+    def placed(self, k: int, theta: float, t=ORIGIN) -> tuple[OccupancyGrid, float, tuple[float, float]]:
+        """``(grid, θ, center)`` of map ``k`` for :func:`merger.transform.canvas` — with a translation
+        t, the center is moved back by R(−θ)t so that the canvas's center c_f maps it to c_f + t."""
+        return self.known(k), theta, _source_center(self.maps[k].center, theta, t)
+
+    def get(self, frame: int, k: int, theta: float, t=ORIGIN) -> OccupancyGrid:
+        """Map ``k`` placed by (θ, t) onto map ``frame``'s lattice: x_f = c_f + t + R(θ)(x_k − c_k)."""
+        t = (float(t[0]), float(t[1]))
+        if k == frame and theta == 0.0 and t == ORIGIN:
+            return self.maps[k].grid
+        key = (frame, k, theta, t)
+        if key not in self._warps:
+            base, m, g = self.maps[frame], self.maps[k], self.known(k)
+            target = shifted(base.center, t)
+            fp = footprint(base.grid, g, theta, m.center, target)
+            self._warps[key] = warp_grid(g, theta, m.center, target, fp)
+        return self._warps[key]
+
+    def check(self, i: int, pi: Placement, j: int, pj: Placement, params: MergeParams) -> Verification:
+        """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
+        key = (i, pi[0], tuple(pi[1]), j, pj[0], tuple(pj[1]))
+        if key not in self._checks:
+            label = f"{self.maps[i].name}|{self.maps[j].name}"
+            if params.verification == "contrast":
+                self._checks[key] = verify_contrast(
+                    self.get(0, i, *pi), self.get(0, j, *pj), shifted(self.maps[0].center, pj[1]),
+                    tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
+                    min_support=params.min_support, label=label)
+            else:
+                a, b = overlap(self.get(0, i, *pi), self.get(0, j, *pj))
+                self._checks[key] = verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
+        return self._checks[key]
+
+
+def _source_center(center, theta: float, t) -> tuple[float, float]:
+    """c − R(−θ)t: with it, c_f + R(θ)(x − (c − R(−θ)t)) = c_f + t + R(θ)(x − c)."""
+    if t[0] == 0.0 and t[1] == 0.0:
+        return (float(center[0]), float(center[1]))
+    d = rotation(-theta) @ np.asarray(t, np.float64)
+    return (float(center[0]) - float(d[0]), float(center[1]) - float(d[1]))
+
+
+def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:
+    """The search problem of ``mov`` onto ``ref`` (a map or a superposition) with ``params``."""
+    return RotationProblem(ref, mov.grid, tuple(ref_center), tuple(mov.center), params.roi_m, params.measure,
+                           params.window_m, params.refine, params.roi_min_support)
+
+
+def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
+                reuse: dict | None = None, warps: Warps | None = None, memo: Memo | None = None):
+    """Search the placements of one order; returns (θ, t) onto map 0 per map index, the search steps and
+    the steps' ambiguities (:func:`merger.ambiguity.resolve`: a step whose runner-up scores within the
+    margin is verified on the whole maps under both hypotheses, and takes the one that evidence separates).
+
+    ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
+    when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
+    alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`.
+    ``memo``: steps shared with other callers (:mod:`merger.memo`), keyed by the maps the step depends on:
+    the ones placed before it (their placements follow from them) and the moving one."""
+    warps = Warps(maps) if warps is None else warps
+    first = maps[order[0]]
+    sup = first.grid
+    onto_first: dict[int, Placement] = {order[0]: (0.0, ORIGIN)}
+    steps, ambiguous = [], []
+    for k in order[1:]:
+        m = maps[k]
+        key = _pair_key(first, m, params) if reuse is not None and k == order[1] else None
+        hit = reuse.get(key) if key is not None else None
+        if hit is None:
+            prob = problem_for(sup, first.center, m, params)
+            placed = order[:order.index(k)]
+            ref = "+".join(maps[x].name for x in placed)
+
+            def step(prob=prob, ref=ref, sup=sup, k=k, m=m):
+                return resolve(prob, search(prob, params.method), params.margin,
+                               _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
+            if memo is None:
+                hit = step()
+            else:
+                hit = memo.get(("order-step", tuple(map_key(maps[x]) for x in placed), map_key(m), params), step)
+            if key is not None:
+                reuse[key] = hit
+        al, amb = hit
+        if amb is not None:
+            ambiguous.append(amb)
+        onto_first[k] = (al.theta_deg, al.translation_m)
+        steps.append((m.name, al))
+        if k != order[-1]:
+            cv = canvas(sup, [warps.placed(k, *onto_first[k])], first.center)
+            sup = OccupancyGrid(superpose(paste(sup, cv).states,
+                                          paste(warps.get(order[0], k, *onto_first[k]), cv).states),
+                                cv.resolution, cv.origin)
+    return compose(onto_first, order[0], 0), tuple(steps), tuple(ambiguous)
+
+
+def _step_check(onto: OccupancyGrid, warps: Warps, frame: int, k: int, params: MergeParams, label: str):
+    """Whole-map verification of an alignment of map ``k`` onto ``onto`` (a map or a superposition on map
+    ``frame``'s lattice, about its center): the ambiguity rule's evidence for one step of an order."""
+    def check(al: Alignment) -> Verification:
+        return verify(*overlap(onto, warps.get(frame, k, al.theta_deg, al.translation_m)),
+                      nu_min=params.nu_min, min_support=params.min_support, label=label)
+    return check
+
+
+def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
+                    warps: Warps | None = None) -> list[OccupancyGrid]:
+    """All maps resampled onto one canvas in map 0's frame: map 0's grid and every other map's known
+    cells (:meth:`Warps.known`), each placed by its (θ, t)."""
+    warps = Warps(maps) if warps is None else warps
+    base = maps[0]
+    cv = canvas(base.grid, [warps.placed(i, *place0[i]) for i in range(1, len(maps))], base.center)
+    return [paste(base.grid, cv)] + [paste(warps.get(0, i, *place0[i]), cv) for i in range(1, len(maps))]
+
+
+def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
+                  warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
+    if params.verification in ("whole_map", "contrast"):
+        checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
+                  for i, j in pairwise(maps)}
+    else:
+        checks = {}
+        for name, al in steps:
+            ok = al.score >= params.score_min
+            checks[name] = Verification(al.score, al.counts, ok, "" if ok else
+                                        f"score of {name} = {al.score:.3f} < score_min {params.score_min:g}")
+    failed = [no_evidence(al, params.roi_min_support, name) for name, al in steps if not al.has_evidence]
+    failed += [c.reason for c in checks.values() if not c.passed] + [a.reason for a in ambiguous if not a.used]
+    return OrderResult(tuple(maps[k].name for k in order), {maps[k].name: place0[k][0] for k in order},
+                       steps, checks, not failed, "; ".join(failed),
+                       {maps[k].name: place0[k][1] for k in order})
+
+
+def _beyond(order: OrderResult) -> str:
+    """Why the chosen order is refused because a search of it found a better alignment outside the
+    translation window ("" if none did; see :func:`merger.search.beyond_window`). The steps' guards are
+    computed side by side (merger.pool; each is a pure function of its search, the same on any schedule)."""
+    parallel_map(lambda step: step[1].beyond, [s for s in order.steps if s[1].window_m > 0])
+    for name, al in order.steps:
+        if al.window_m > 0 and al.beyond is not None:
+            th, t, v = al.beyond
+            return (f"beyond the window: {name}'s best alignment lies outside ±{al.window_m:g} m (θ {th:.0f}°, "
+                    f"t ({t[0]:+.2f}, {t[1]:+.2f}) m, coarse score {v:.3f}): the center error may exceed "
+                    f"half the window; widen merger.window_m")
+    return ""
+
+
+def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
+               reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
+    """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
+
+    Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
+    ``reuse`` (a dict kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): pair
+    alignments of maps that carry a ``version`` are reused while both maps are unchanged; after the
+    cycle it holds only this cycle's pairs. The result is the same as without it. ``memo``
+    (:mod:`merger.memo`): search steps shared with the other robots of a simulation; the result is the
+    same, its ``charged_ms`` the computing time of the steps taken from the memo.
+    """
+    t0 = time.perf_counter()
+    if memo is not None:
+        memo.take_charged_ms()
+    orders = merge_orders(len(maps), [m.name for m in maps])
+    warps = Warps(maps)
+    # the orders are independent: searched side by side (merger.pool; the same result on any schedule)
+    aligned = parallel_map(lambda o: align_order(maps, o, params, reuse, warps, memo), orders)
+    if reuse is not None:  # keep only this cycle's pairs
+        live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
+        for key in [k for k in reuse if k not in live]:
+            del reuse[key]
+    results = [_order_result(maps, o, params, place0, steps, warps, amb)
+               for o, (place0, steps, amb) in zip(orders, aligned, strict=True)]
+    accepted = [k for k, r in enumerate(results) if r.accepted]
+    chosen, merged, layers, ambiguity = None, None, {}, ""
+    if accepted:
+        best = max(accepted, key=lambda k: results[k].nu_sum)  # the first of equal sums
+        ambiguity = _ambiguity(results, accepted, best, params.margin) or _beyond(results[best])
+        chosen = None if ambiguity else results[best]
+    place = aligned[best][0] if chosen is not None else None
+    if chosen is not None and params.combine_orders and params.verification in ("whole_map", "contrast"):
+        combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, orders[best], params, warps)
+        if combined is not None:
+            results[best], place = combined
+            chosen = results[best]
+    if chosen is not None:
+        lay = place_on_frame0(maps, place, warps)
+        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
+        layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
+    return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
+                           (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb),
+                           memo.take_charged_ms() if memo is not None else 0.0)
+
+
+def _combine(maps: list[MapInput], results: list[OrderResult], places: list[dict[int, Placement]],
+             accepted: list[int], best: int, order: tuple[int, ...], params: MergeParams, warps: Warps):
+    """The mean placement of the accepted orders that agree with the best one, verified; ``None`` when
+    fewer than two agree or the mean does not pass.
+
+    Agree: every map within AMBIGUOUS_DEG and AMBIGUOUS_M of the best's placement (the ambiguity rule's
+    distances: closer than that, two orders are one hypothesis, not rivals). The mean is taken per map
+    over those orders, angles as the best's angle plus the mean wrapped difference, translations
+    arithmetically; it replaces the best order's result (same order and steps, ``combined`` naming the
+    orders averaged, its pairs verified again on the whole maps). Each order aligns the maps along a
+    different sequence of searches, so their small errors differ; on scene2-thesis (seed 5, 17.7 s) the
+    two accepted orders had Σν 2.9022 (errors 0.05°/0.21°) and 2.9023 (2.05°/1.34°: a sparse map rotated
+    2° loses a few overlapping cells and its ν rises on fewer cells), the thesis's rule took the second."""
+    b = results[best]
+    agree = [k for k in accepted
+             if all(abs(angle_diff_deg(results[k].theta_deg[n], b.theta_deg[n])) <= AMBIGUOUS_DEG
+                    and math.dist(results[k].translation(n), b.translation(n)) <= AMBIGUOUS_M for n in b.theta_deg)]
+    if len(agree) < 2:
+        return None
+    place: dict[int, Placement] = {}
+    for i in range(len(maps)):
+        th0 = places[best][i][0]
+        dth = sum(angle_diff_deg(places[k][i][0], th0) for k in agree) / len(agree)
+        tx = sum(places[k][i][1][0] for k in agree) / len(agree)
+        ty = sum(places[k][i][1][1] for k in agree) / len(agree)
+        place[i] = (0.0, ORIGIN) if i == 0 else (wrap_deg(th0 + dth), (float(tx), float(ty)))
+    fused = _order_result(maps, order, params, place, b.steps, warps)
+    if not fused.accepted:
+        return None
+    return replace(fused, combined=tuple(results[k].order for k in agree)), place
+
+
+def _ambiguity(results: list[OrderResult], accepted: list[int], best: int, margin: float) -> str:
+    """Why the best accepted order is ambiguous ("" if it is not): another accepted order places some map
+    more than AMBIGUOUS_DEG or AMBIGUOUS_M away, and the best's mean ν beats it by less than ``margin``."""
+    if margin <= 0:
+        return ""
+    b = results[best]
+    npairs = max(len(b.checks), 1)
+    for k in accepted:
+        o = results[k]
+        if k == best:
+            continue
+        for name in b.theta_deg:
+            dth = abs(angle_diff_deg(o.theta_deg[name], b.theta_deg[name]))
+            dt = math.dist(o.translation(name), b.translation(name))
+            if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
+                gap = (b.nu_sum - o.nu_sum) / npairs
+                if gap < margin:
+                    return (f"ambiguous: order {'→'.join(o.order)} also passes and places {name} "
+                            f"{dth:.1f}° / {dt:.2f} m away; mean ν {b.nu_sum / npairs:.3f} vs "
+                            f"{o.nu_sum / npairs:.3f} (margin {margin:g})")
+                break
+    return ""
+
+
+def fused_layers(maps: list[MapInput], theta_deg: dict[str, float],
+                 translation_m: dict[str, tuple[float, float]] | None = None) -> list[OccupancyGrid]:
+    """The maps placed on map 0's frame with given rotations and translations (e.g. a kept earlier
+    alignment; translations default to none)."""
+    tr = translation_m or {}
+    return place_on_frame0(maps, {i: (theta_deg[m.name], tuple(tr.get(m.name, ORIGIN)))
+                                  for i, m in enumerate(maps)})
+

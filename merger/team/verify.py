@@ -1,0 +1,82 @@
+"""Verification of an alignment on whole maps (thesis 3.3.1, eq. 3.12, and the online support rule).
+
+An alignment is accepted when ω̃ computed on the whole aligned maps is at least ``nu_min`` *and* its
+support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
+hypothesis is rejected in that case (favouring false negatives over false merges). For maps from
+independent runs (real maps), :func:`verify_contrast` asks instead how far the placement's whole-map
+fit stands above its rivals' (:mod:`merger.team.evidence`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grid import OccupancyGrid
+from ..measures import Counts, similarity_index
+from ..transform import overlap
+from .evidence import AGREE_DEG, Contrast, contrast
+
+
+@dataclass(frozen=True)
+class Verification:
+    nu: float
+    counts: Counts
+    passed: bool
+    reason: str = ""
+    contrast: Contrast | None = None  # the contrast evidence (verification "contrast", :mod:`merger.team.evidence`)
+
+    @property
+    def support(self) -> int:
+        return self.counts.support
+
+
+def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
+           label: str = "") -> Verification:
+    """ω̃ of two aligned whole maps with the acceptance rule; ``reason`` says why it failed."""
+    s = similarity_index(a, b)
+    name = f"ν({label})" if label else "ν"
+    if s.counts.support < min_support:
+        return Verification(s.value, s.counts, False,
+                            f"support of {name} = {s.counts.support} < min_support {min_support}")
+    if s.value < nu_min:
+        return Verification(s.value, s.counts, False, f"{name} = {s.value:.3f} < ν_min {nu_min:g}")
+    return Verification(s.value, s.counts, True)
+
+
+def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: float, contrast_min: float,
+                    min_support: int, label: str = "") -> Verification:
+    """The contrast rule (:mod:`merger.team.evidence`) for b placed onto a (grids on one lattice, rotations about
+    ``pivot``); ``nu`` and ``counts`` are ω̃ on the overlap, as in :func:`verify`, for the record."""
+    s = similarity_index(*overlap(a, b))
+    k = contrast(a, b, pivot, tolerance_m)
+    name = f" of {label}" if label else ""
+    if k.support < min_support:
+        return Verification(s.value, s.counts, False, f"support{name} = {k.support} occupied cells on known "
+                            f"cells < min_support {min_support}", k)
+    if abs(k.best_at[0]) > AGREE_DEG:
+        return Verification(s.value, s.counts, False,
+                            f"the whole maps{name} fit best {k.best_at[0]:+.1f}° from the placement (more than "
+                            f"{AGREE_DEG:g}°): the ROI's answer is not where the maps agree", k)
+    if k.contrast < contrast_min:
+        return Verification(s.value, s.counts, False,
+                            f"contrast{name} = {k.contrast:.2f} < contrast_min {contrast_min:g} (fit {k.best:.3f}, "
+                            f"rival {k.rival:.3f} at {k.rival_at[0]:.0f}°)", k)
+    return Verification(s.value, s.counts, True, "", k)
+
+
+def no_evidence(al, floor: int, label: str = "") -> str:
+    """Why an alignment without evidence (``al.has_evidence`` false) is not an answer."""
+    what = f" for {label}" if label else ""
+    c = al.counts
+    return (f"no evidence{what}: no placement in the {al.roi_m:g} m ROI reaches {floor} cells of support "
+            f"(agr̃ + dis) with an agreeing cell (best: agree {c.agree}, disagree {c.disagree}); is an "
+            f"occupied cell near the center in both maps?")
+
+
+def pairwise(layers: list[np.ndarray]) -> list[tuple[int, int]]:
+    """Index pairs (i, j), i < j, of a list of aligned layers."""
+    n = len(layers)
+    return [(i, j) for i in range(n) for j in range(i + 1, n)]
+

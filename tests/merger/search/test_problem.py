@@ -1,0 +1,54 @@
+"""merger.search.problem: an Alignment is a frozen value; its one lazy piece of evidence (the guard beyond
+the window) is computed once, on first access, thread-safe, and pickling answers it."""
+
+import dataclasses
+import pickle
+import threading
+
+import numpy as np
+import pytest
+
+from merger.measures import Counts
+from merger.search import BEYOND_GUARDS, Alignment, BeyondQuery
+
+
+def alignment(query=None):
+    return Alignment(12.0, 0.5, Counts(3, 1), "similarity", "fast", 8.0, np.zeros(360), (190.0, 0.25),
+                     window_m=0.2, beyond_query=query)
+
+
+def test_an_alignment_is_frozen_and_its_fields_are_values():
+    al = alignment()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        al.theta_deg = 1.0
+    assert al.counts == Counts(3, 1) and al.runner_up == (190.0, 0.25) and al.margin == pytest.approx(0.25)
+    assert al.beyond is None and al.to_dict()["beyond"] is None
+
+
+def test_the_guard_runs_once_on_first_access_even_from_many_threads(monkeypatch):
+    calls = []
+    gate = threading.Event()
+
+    def guard(problem, best_value, answer):
+        gate.wait(5)
+        calls.append(answer)
+        return (30, (0.5, -0.25), 0.75)
+
+    monkeypatch.setitem(BEYOND_GUARDS, "counted", guard)
+    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), "counted"))
+    assert calls == []  # nothing computed at construction
+    out = []
+    threads = [threading.Thread(target=lambda: out.append(al.beyond)) for _ in range(4)]
+    for t in threads:
+        t.start()
+    gate.set()
+    for t in threads:
+        t.join()
+    assert calls == [(12.0, (0, 0))] and out == [(30.0, (0.5, -0.25), 0.75)] * 4
+
+
+def test_pickling_answers_the_guard_and_drops_the_question(monkeypatch):
+    monkeypatch.setitem(BEYOND_GUARDS, "fixed", lambda problem, best_value, answer: None)
+    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), "fixed"))
+    back = pickle.loads(pickle.dumps(al))
+    assert back.beyond is None and back.beyond_query is None and back.theta_deg == al.theta_deg

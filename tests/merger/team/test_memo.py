@@ -1,0 +1,63 @@
+"""merger.team.memo: results shared by content key, charged at their cost, bounded."""
+
+import time
+
+import numpy as np
+
+from merger.grid import OCCUPIED_S, OccupancyGrid
+from merger.team.memo import Memo, grid_key, map_key
+from merger.team.orders import MapInput
+
+
+def _grid(seed: int = 0) -> OccupancyGrid:
+    rng = np.random.default_rng(seed)
+    return OccupancyGrid(rng.integers(0, 3, (40, 50)).astype(np.uint8), 0.05, (-1.0, -1.25))
+
+
+def test_a_result_is_computed_once_and_charged_to_every_later_caller():
+    memo = Memo()
+    calls = []
+
+    def compute():
+        calls.append(1)
+        time.sleep(0.02)
+        return {"answer": 42}
+
+    first = memo.get(("pair", 1), compute)
+    assert memo.take_charged_ms() == 0.0  # the first caller computed it: nothing charged
+    second = memo.get(("pair", 1), compute)
+    third = memo.get(("pair", 1), compute)
+    assert first is second is third and calls == [1]
+    charged = memo.take_charged_ms()
+    assert charged >= 2 * 15.0  # two callers, each charged the ~20 ms the computation took
+    assert memo.take_charged_ms() == 0.0  # taken: reset
+    assert (memo.computed, memo.shared) == (1, 2)
+
+
+def test_keys_follow_content_not_identity():
+    g = _grid()
+    same = OccupancyGrid(g.states.copy(), g.resolution, g.origin)
+    assert grid_key(g) == grid_key(same)
+    changed = g.states.copy()
+    changed[3, 4] = OCCUPIED_S if changed[3, 4] != OCCUPIED_S else 0
+    assert grid_key(OccupancyGrid(changed, g.resolution, g.origin)) != grid_key(g)
+    assert grid_key(OccupancyGrid(g.states, g.resolution, (0.0, 0.0))) != grid_key(g)  # geometry counts
+    a = MapInput("Lyon", g, (0.1, 0.2))
+    assert map_key(a) == map_key(MapInput("Lyon", same, (0.1, 0.2)))  # without a version: the content
+    assert map_key(a) != map_key(MapInput("Lyon", g, (0.1, 0.25)))  # the center counts
+    assert map_key(a) != map_key(MapInput("Oslo", g, (0.1, 0.2)))  # and the owner
+    # with a version (a map message's stamp, which identifies the owner's grid): the version
+    v1 = MapInput("Lyon", g, (0.1, 0.2), version=1.5)
+    assert map_key(v1) == map_key(MapInput("Lyon", same, (0.1, 0.2), version=1.5))
+    assert map_key(v1) != map_key(MapInput("Lyon", g, (0.1, 0.2), version=2.5))
+
+
+def test_the_memo_is_bounded():
+    memo = Memo(max_entries=5)
+    for k in range(20):
+        memo.get(k, lambda k=k: k * k)
+    assert len(memo) == 5
+    assert memo.get(19, lambda: -1) == 361  # recent entries stay
+    assert memo.get(0, lambda: -1) == -1  # old ones were evicted: computed again
+    memo.clear()
+    assert len(memo) == 0 and memo.charged_ms == 0.0

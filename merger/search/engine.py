@@ -6,7 +6,7 @@ translation first in :func:`merger.search.prepared.translation_offsets` order, t
 angle; then 0.1° over θc ± 1° at that translation, the first maximum. K = 0 is the thesis's search.
 
 * :func:`spec_search` — the definition in numpy (every angle and translation evaluated on whole ROIs
-  with :mod:`merger.similarity`); slow, for small problems in tests.
+  with :mod:`merger.measures`); slow, for small problems in tests.
 * :func:`reference_search` — the same exhaustive loop on the compiled exact counts
   (:func:`merger.search.kernels.exact_counts`): the same floats, at full size.
 * :func:`fast_search` — :func:`merger.search.kernels.branch_and_bound` over (sector, box) regions with
@@ -283,9 +283,7 @@ def fast_search(problem) -> Alignment:
     inc, env = s.run(COARSE, init=s.initial_regions())
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
-    th_f = float(angles[kf])
-    value = float(s.values(th_f, [tc])[0])  # the counts (free/free: a dense pass) on first access
-    counts = lambda: searcher_for(problem).exact(th_f, *tc)[1]  # noqa: E731
+    value, counts = s.exact(float(angles[kf]), *tc)
     # the fine scores: exact wherever a bound reaches the best (a plateau of equal scores is exact),
     # elsewhere bounds below it (the sub-cell refinement reads only the plateau)
     fine_vals = fine_env.copy()
@@ -423,7 +421,7 @@ def reference_beyond(problem, best_value: float, answer):
 
 
 def spec_search(problem) -> Alignment:
-    """The definition in numpy: every angle × translation on whole ROIs (:mod:`merger.similarity`)."""
+    """The definition in numpy: every angle × translation on whole ROIs (:mod:`merger.measures`)."""
     measure = measure_fn(problem.measure)
 
     def fn(a, b):

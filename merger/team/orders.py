@@ -5,10 +5,10 @@ then the third map is aligned onto the superposition of the pair. Here an *order
 indices; its first two are the first pair and every further map is aligned onto the superposition of
 all maps before it. :func:`merge_orders` gives one order per pair, so N maps give N(N−1)/2 orders (the
 thesis's three for N = 3) and nothing below assumes N = 3. The maps are ranked by name, so every robot
-of a team evaluates the same orders (and a simulation computes each once: :mod:`merger.memo`).
+of a team evaluates the same orders (and a simulation computes each once: :mod:`merger.team.memo`).
 
 Every order is expressed in the frame of map 0 (the robot that merges) and verified on the whole maps:
-ν_ij = ω̃(m*_i, m*_j) for every pair, accepted when all pass (:mod:`merger.verify`). Among accepted
+ν_ij = ω̃(m*_i, m*_j) for every pair, accepted when all pass (:mod:`merger.team.verify`). Among accepted
 orders the highest Σν wins (the thesis's rule). Beyond the thesis (``combine_orders``, on by default):
 the accepted orders that place every map within 10° and 0.2 m of the winner are the same hypothesis
 measured along different orders, and the chosen placement is their mean — verified again on the whole
@@ -59,7 +59,7 @@ class MergeParams:
         cross-correlation method, which had only a threshold on the correlation coefficient); "contrast" —
         for maps from independent runs (real maps): every pair's whole-map fit within ``tolerance_m`` must
         stand at least ``contrast_min`` times above its best rival placement at least 10° away, on at
-        least ``min_support`` occupied cells (:mod:`merger.evidence`; measured on real maps in
+        least ``min_support`` occupied cells (:mod:`merger.team.evidence`; measured on real maps in
         docs/merging-real-maps.md). Orders are still ranked by Σν.
     ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted
         order places some map more than 10° or 0.2 m away from the chosen order's placement is rejected as
@@ -210,13 +210,13 @@ class TeamMergeResult:
     layers: dict[str, OccupancyGrid] = field(repr=False)
     wall_ms: float = 0.0
     ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
-    ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.ambiguity`)
-    charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.memo`)
+    ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.team.ambiguity`)
+    charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.team.memo`)
 
     @property
     def cost_ms(self) -> float:
         """What the cycle costs a robot computing alone: its wall time and the time of the shared results
-        it took (:mod:`merger.memo`)."""
+        it took (:mod:`merger.team.memo`)."""
         return self.wall_ms + self.charged_ms
 
     @property
@@ -251,7 +251,7 @@ def merge_orders(n: int, names=None) -> list[tuple[int, ...]]:
     """One order per pair (a, b), a < b: the pair first, then the remaining maps by index. With ``names``
     (the maps' names by index) the maps are ranked by name instead of by index: every robot then
     evaluates the same orders (its own map is not always first), so a simulation's robots share their
-    searches (:mod:`merger.memo`); each order is still expressed in the merging robot's frame."""
+    searches (:mod:`merger.team.memo`); each order is still expressed in the merging robot's frame."""
     if n < 2:
         raise ValueError(f"merging needs at least two maps, got {n}")
     rank = list(range(n)) if names is None else sorted(range(n), key=lambda k: names[k])
@@ -365,13 +365,13 @@ def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergePara
 def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParams,
                 reuse: dict | None = None, warps: Warps | None = None, memo: Memo | None = None):
     """Search the placements of one order; returns (θ, t) onto map 0 per map index, the search steps and
-    the steps' ambiguities (:func:`merger.ambiguity.resolve`: a step whose runner-up scores within the
+    the steps' ambiguities (:func:`merger.team.ambiguity.resolve`: a step whose runner-up scores within the
     margin is verified on the whole maps under both hypotheses, and takes the one that evidence separates).
 
     ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
     alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`.
-    ``memo``: steps shared with other callers (:mod:`merger.memo`), keyed by the maps the step depends on:
+    ``memo``: steps shared with other callers (:mod:`merger.team.memo`), keyed by the maps the step depends on:
     the ones placed before it (their placements follow from them) and the moving one."""
     warps = Warps(maps) if warps is None else warps
     first = maps[order[0]]
@@ -449,7 +449,7 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
 def _beyond(order: OrderResult) -> str:
     """Why the chosen order is refused because a search of it found a better alignment outside the
     translation window ("" if none did; see :func:`merger.search.beyond_window`). The steps' guards are
-    computed side by side (merger.pool; each is a pure function of its search, the same on any schedule)."""
+    computed side by side (merger.team.pool; each is a pure function of its search, the same on any schedule)."""
     parallel_map(lambda step: step[1].beyond, [s for s in order.steps if s[1].window_m > 0])
     for name, al in order.steps:
         if al.window_m > 0 and al.beyond is not None:
@@ -465,10 +465,10 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
 
     Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
-    ``reuse`` (a dict kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): pair
+    ``reuse`` (a dict kept by the caller between cycles, e.g. :class:`merger.team.online.TeamMerger`): pair
     alignments of maps that carry a ``version`` are reused while both maps are unchanged; after the
     cycle it holds only this cycle's pairs. The result is the same as without it. ``memo``
-    (:mod:`merger.memo`): search steps shared with the other robots of a simulation; the result is the
+    (:mod:`merger.team.memo`): search steps shared with the other robots of a simulation; the result is the
     same, its ``charged_ms`` the computing time of the steps taken from the memo.
     """
     t0 = time.perf_counter()
@@ -476,7 +476,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
         memo.take_charged_ms()
     orders = merge_orders(len(maps), [m.name for m in maps])
     warps = Warps(maps)
-    # the orders are independent: searched side by side (merger.pool; the same result on any schedule)
+    # the orders are independent: searched side by side (merger.team.pool; the same result on any schedule)
     aligned = parallel_map(lambda o: align_order(maps, o, params, reuse, warps, memo), orders)
     if reuse is not None:  # keep only this cycle's pairs
         live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}

@@ -1,10 +1,10 @@
 """Team merging from verified pairs: a maximum spanning tree of pairwise alignments (issue 10, item 2).
 
-The thesis's procedure (:func:`merger.team.merge_team`, ``strategy: orders``) searches every merge order
+The thesis's procedure (:func:`merger.team.orders.merge_team`, ``strategy: orders``) searches every merge order
 again whenever any map changes: N(N−1)/2 orders of N−1 searches each, most of them onto superpositions
 that are new every cycle. Here every *pair* of raw maps is searched once per pair of map versions and
 verified on its own (ν_ij on the whole maps, in the frame of the map whose name comes first: every robot
-searches a pair alike, and a simulation's robots share it, :mod:`merger.memo`); a new map from one robot
+searches a pair alike, and a simulation's robots share it, :mod:`merger.team.memo`); a new map from one robot
 costs its N−1 pair searches, every other pair is reused from the previous cycle. The team map is then
 assembled:
 
@@ -25,7 +25,7 @@ assembled:
    rule (every pair ≥ ν_min) rejected every 6-robot cycle of the hall after 15 s, all of them correct,
    and requiring it of the pairs that verified on their own still rejected 4 of 5 (a marginal pair's
    ν moves across ν_min between its own best alignment and the composed one).
-5. as with the orders (:func:`merger.team._beyond`), an assembly is refused when a tree edge's search
+5. as with the orders (:func:`merger.team.orders._beyond`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
@@ -70,7 +70,7 @@ from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
 @dataclass(frozen=True, eq=False)
 class PairResult:
     """Map j searched onto map i and verified in i's frame; ``ambiguity``: the pair's runner-up scored
-    within the margin (:mod:`merger.ambiguity`) — the alignment is the hypothesis whole-map evidence chose,
+    within the margin (:mod:`merger.team.ambiguity`) — the alignment is the hypothesis whole-map evidence chose,
     or, when it chose none, the best one with a failed ``verification`` naming both (the edge is dropped)."""
 
     ref: str
@@ -92,7 +92,7 @@ class PairResult:
 
 def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps) -> PairResult:
     """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame; an
-    ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.ambiguity.resolve`)."""
+    ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.team.ambiguity.resolve`)."""
     label = f"{maps[i].name}|{maps[j].name}"
 
     def check(al: Alignment) -> Verification:
@@ -277,12 +277,12 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
 
-    ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.online.TeamMerger`): every pair's
+    ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.team.online.TeamMerger`): every pair's
     search and verification, by the versions of its two maps; after the cycle it holds only this cycle's
     pairs. The result has one hypothesis (``orders[0]``): the placed maps in tree order, its ``steps``
     the tree edges' pair searches as (moving map, alignment) — every pair is searched with the map whose
     name comes first as the reference, in that map's frame, so every robot searches it alike — and its
-    ``checks`` the placed pairs verified on map 0's frame. ``memo`` (:mod:`merger.memo`): pair results shared with the other robots of a simulation (the
+    ``checks`` the placed pairs verified on map 0's frame. ``memo`` (:mod:`merger.team.memo`): pair results shared with the other robots of a simulation (the
     result is the same; its ``charged_ms`` is the computing time of the pairs taken from the memo)."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
@@ -312,7 +312,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         return memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
                         lambda: pair_result(maps, r, m, params, warps))
 
-    # the pairs are independent: searched side by side (merger.pool; the same result on any schedule)
+    # the pairs are independent: searched side by side (merger.team.pool; the same result on any schedule)
     for (ij, _, _, key), hit in zip(todo, parallel_map(compute, todo), strict=True):
         if key is not None:
             reuse[key] = hit

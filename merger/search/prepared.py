@@ -19,6 +19,8 @@ Everything here is exact integer bookkeeping; the floats of the lookups are thos
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from ..grid import FREE_S, OCCUPIED_S
@@ -30,16 +32,24 @@ from .measures import measure
 
 def translation_offsets(k: int) -> list[tuple[int, int]]:
     """All (a, b) with |a|, |b| ≤ k, nearest first: by a² + b², then b, then a (the tie order)."""
+    return list(_offsets(k))
+
+
+@lru_cache(maxsize=16)
+def _offsets(k: int) -> tuple[tuple[int, int], ...]:
     ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
-    return sorted(ts, key=lambda t: (t[0] * t[0] + t[1] * t[1], t[1], t[0]))
+    return tuple(sorted(ts, key=lambda t: (t[0] * t[0] + t[1] * t[1], t[1], t[0])))
 
 
+@lru_cache(maxsize=16)
 def rank_table(k: int) -> np.ndarray:
-    """rank[(b + k)·(2k+1) + (a + k)]: the position of (a, b) in :func:`translation_offsets`."""
+    """rank[(b + k)·(2k+1) + (a + k)]: the position of (a, b) in :func:`translation_offsets` (read-only,
+    shared by every problem with this window)."""
     side = 2 * k + 1
     out = np.empty(side * side, np.int64)
-    for r, (a, b) in enumerate(translation_offsets(k)):
+    for r, (a, b) in enumerate(_offsets(k)):
         out[(b + k) * side + (a + k)] = r
+    out.flags.writeable = False
     return out
 
 

@@ -1,5 +1,9 @@
 """Team merging: merge orders, verification on whole maps, choice of the hypothesis (thesis 3.3.1).
 
+(Longer than ~400 lines: a third of it is the team's value types — MergeParams documented key by key,
+MapInput, OrderResult, TeamMergeResult — which every strategy imports from here; the rest is read as
+one procedure.)
+
 For three maps the thesis evaluates three orders (3.10): a pair (1,2), (1,3) or (2,3) is aligned first,
 then the third map is aligned onto the superposition of the pair. Here an *order* is a sequence of map
 indices; its first two are the first pair and every further map is aligned onto the superposition of

@@ -14,8 +14,11 @@ kernels release the GIL, so the searches of a merge cycle run side by side on th
 * :func:`region_bound` — an upper bound of the measure over a sector of angles × a box of
   translations, from the reference's occupied cells (pooled in blocks of 2^L cells) looked up in
   summed-area tables of the moving map over the disc every lookup of the region can reach (Lemma 3).
-* :func:`branch_and_bound` — best-first over (sector, box) regions; a region is dropped when its bound
-  key cannot come before the incumbent in the reference's order (Lemma 5).
+* :func:`moving_bound` — at one angle, the same from the moving side: each occupied lattice point against
+  the rectangle of reference cells it reads over the box (Lemma 3b); :func:`moving_points_all` gives
+  those points for every coarse angle at once (kept per moving map by the engine).
+* :func:`branch_and_bound` — best-first over (sector, box) regions, angles split before boxes; a region
+  is dropped when its bound key cannot come before the incumbent in the reference's order (Lemma 5).
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -61,6 +62,14 @@ BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the windo
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
 BEYOND_BUDGET = 40000  # regions the guard may bound (a count: deterministic); best-first, a better placement
 # is found early when there is one, the budget cuts the proof that there is none (docs/design/search.md §5)
+
+
+@lru_cache(maxsize=8)
+def _raster(side: int) -> np.ndarray:
+    """Tie ranks of the translations in raster order (index b·side + a itself)."""
+    out = np.arange(side * side, dtype=np.int64)
+    out.flags.writeable = False
+    return out
 
 
 def _rot(angles: np.ndarray) -> np.ndarray:
@@ -116,13 +125,26 @@ class Searcher:
         return self._asum
 
     def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0, budget: int = 0, init=None):
+            sector0: int = SECTOR0, budget: int = 0, init=None, raster: bool = False):
         """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
-        ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it."""
+        ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it.
+        ``raster``: translations tie in raster order (b, then a) instead of the nearest-first order."""
         with self.lock:
-            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init)
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster)
 
-    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init):
+    def first_max(self, angles, ts) -> tuple[float, int, tuple[int, int]] | None:
+        """The first maximum of the exact values over ``angles`` (in that order) × translations ``ts``
+        (cells, in raster order: b, then a) — what a loop over the angles taking each angle's first
+        ``argmax`` of :meth:`values` and keeping an angle only when strictly better gives — as (value,
+        index into ``angles``, (a, b)); None when ``angles`` or ``ts`` is empty. By the branch and bound."""
+        angles = np.asarray(angles, np.float64)
+        if angles.size == 0 or len(ts) == 0:
+            return None
+        # one first region per angle: the angles need not be ascending (they may wrap at 360°)
+        inc, _ = self.run(angles, mode=1, tmask=self.translation_mask(ts), sector0=1, raster=True)
+        return float(inc[0]), int(inc[3]), (int(inc[4]), int(inc[5]))
+
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster=False):
         p = self.p
         angles = np.asarray(angles, np.float64)
         rot = self._use(angles)
@@ -136,7 +158,8 @@ class Searcher:
                           p.floor], np.int64)
         nb, ne, self.complete = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
                                   p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
-                                  angles, rot, amask, tmask, p.rank, p.tsum, self.angle_sums(),
+                                  angles, rot, amask, tmask, _raster(side) if raster else p.rank, p.tsum,
+                                  self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env,
                                   *(_NO_INIT if init is None else init), p.occ_x, p.occ_y,

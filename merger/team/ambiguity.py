@@ -135,18 +135,14 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
     ev = ev if ev is not None else searcher_for(problem)
     k = problem.window_cells
     ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)]
-    top = None
-    for d in range(-RIVAL_SPAN_DEG, RIVAL_SPAN_DEG + 1):
-        th = float((round(ru_deg) + d) % 360)
-        if abs(angle_diff_deg(th, al.theta_deg)) <= RUNNER_UP_MIN_SEPARATION_DEG:
-            continue
-        vals = ev.values(th, ts)
-        i = int(np.argmax(vals))
-        if top is None or vals[i] > top[0]:
-            top = (float(vals[i]), th, ts[i])
+    # the best coarse angle within ±RIVAL_SPAN_DEG of it, over the window: the first maximum in the
+    # order of the angles, then of the translations (raster), exactly
+    near = [float((round(ru_deg) + d) % 360) for d in range(-RIVAL_SPAN_DEG, RIVAL_SPAN_DEG + 1)]
+    near = [th for th in near if abs(angle_diff_deg(th, al.theta_deg)) > RUNNER_UP_MIN_SEPARATION_DEG]
+    top = ev.first_max(near, ts)
     if top is None:
         return None
-    top_value, th_c, tc = top
+    top_value, th_c, tc = top[0], near[top[1]], top[2]
     angles = np.array([a for a in fine_angles(th_c)
                        if abs(angle_diff_deg(float(a), al.theta_deg)) > RUNNER_UP_MIN_SEPARATION_DEG])
     return _exact_rival(problem, al, ev, angles, th_c, tc, top_value, margin)
@@ -196,10 +192,8 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float, ev=None)
            if math.dist(problem.offset_m(a, b), a0) > RIVAL_SHIFT_M]
     if not far:
         return None
-    th_c = float(int(round(al.theta_grid_deg)) % 360)  # the best's coarse angle (its rotated ROI is cached)
-    vals = ev.values(th_c, far)
-    i = int(np.argmax(vals))
-    top_value, tc = float(vals[i]), far[i]
+    th_c = float(int(round(al.theta_grid_deg)) % 360)  # the best's coarse angle
+    top_value, _, tc = ev.first_max([th_c], far)  # the first maximum over ``far`` (raster order), exactly
     if al.score - top_value >= margin + PREFILTER_SLACK:
         return None
     return _exact_rival(problem, al, ev, fine_angles(th_c), th_c, tc, top_value, margin)

@@ -21,6 +21,7 @@ from merger.search import (
     fast_search,
     reference_beyond,
     reference_search,
+    searcher_for,
     spec_search,
 )
 from merger.search.kernels import fill_moving
@@ -71,6 +72,39 @@ def test_reference_equals_spec_and_fast_equals_reference(seed, measure, window):
     assert ru == ref.runner_up or (np.isnan(ru[0]) and np.isnan(ref.runner_up[0]))
     if not np.isnan(ru[0]):
         assert ref.runner_up[1] <= fast.runner_up[1] <= ref.profile.max()
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), centre=st.sampled_from([0, 1, 359, 200]),
+       span=st.integers(0, 2), every=st.integers(1, 3))
+def test_first_max_is_the_loop_over_angles_and_translations(seed, measure, centre, span, every):
+    """The ambiguity rule's scans (the best of a few coarse angles, wrapping at 360°, over some of the
+    window's translations in raster order) by the branch and bound equal the plain loop over values."""
+    p = adversarial_problem(seed, measure, True)
+    s = searcher_for(p)
+    k = p.window_cells
+    ts = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)][::every]
+    angles = [float((centre + d) % 360) for d in range(-span, span + 1)]
+    top = None
+    for i, th in enumerate(angles):
+        vals = s.values(th, ts)
+        j = int(np.argmax(vals))
+        if top is None or vals[j] > top[0]:
+            top = (float(vals[j]), i, ts[j])
+    assert s.first_max(angles, ts) == top
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), window=st.booleans())
+def test_the_runner_up_seeded_by_the_envelope_is_the_same(seed, measure, window):
+    """exact_runner_up started from the fast search's profile (one region per angle bounded by it)
+    finds what it finds from scratch, with and without a floor."""
+    p = adversarial_problem(seed, measure, window)
+    fast = fast_search(p)
+    for floor in (None, fast.score - 0.1):
+        seeded = exact_runner_up(p, fast.theta_deg, floor, envelope=fast.profile)
+        scratch = exact_runner_up(p, fast.theta_deg, floor)
+        assert seeded == scratch or (np.isnan(seeded[0]) and np.isnan(scratch[0]))
 
 
 @pytest.mark.parametrize("kind", ["views", "symmetric", "sparse", "identical", "noise"])

@@ -11,6 +11,7 @@ problem. Numba's on-disk cache of compiled kernels is separate (``NUMBA_CACHE_DI
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import OrderedDict
 
 MAX_ENTRIES = 8
@@ -54,6 +55,23 @@ def moving_side(grid, key: tuple, factory):
         while len(_MOVING) > MOVING_ENTRIES:
             _MOVING.popitem(last=False)
     return value
+
+
+# the fast search's frontier per problem object, for as long as the problem lives (a runner-up search of
+# the same problem starts from it: merger.search.engine.exact_runner_up); keyed by the object itself, so
+# what a later search finds never depends on what else was cached meanwhile
+_FRONTIERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def keep_frontier(problem, frontier) -> None:
+    with _LOCK:
+        _FRONTIERS[problem] = frontier
+
+
+def frontier(problem):
+    """The frontier the fast search of ``problem`` left (None if it has not run)."""
+    with _LOCK:
+        return _FRONTIERS.get(problem)
 
 
 def clear_all() -> None:

@@ -57,6 +57,8 @@ _NO_POINTS = np.zeros(0, np.int32)
 SLOT_BYTES = 8 * 2**20  # the moving ROIs kept per search (dense states and occupied points) ...
 MAX_SLOTS = 32  # ... at most this many angles (a search evaluates few angles exactly)
 SECTOR0 = 8  # the branch and bound starts from sectors of this many angles × the whole window
+FRONTIER_KEEP = 0.12  # the fast search keeps its frontier within this of its incumbent (the ambiguity
+# rule's runner-up floor is the answer's score − margin − 0.05, margin 0.05 by default with a window)
 POINTS_BYTES = 32 * 2**20  # the coarse angles' occupied lattice points kept per moving map, at most this size
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
@@ -125,12 +127,14 @@ class Searcher:
         return self._asum
 
     def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0, budget: int = 0, init=None, raster: bool = False):
+            sector0: int = SECTOR0, budget: int = 0, init=None, raster: bool = False, keep: float = -1.0):
         """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
         ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it.
-        ``raster``: translations tie in raster order (b, then a) instead of the nearest-first order."""
+        ``raster``: translations tie in raster order (b, then a) instead of the nearest-first order.
+        ``keep`` ≥ 0: ``self.frontier`` holds the regions dropped (elements evaluated) within ``keep`` of the
+        incumbent of their moment, as (regions, bounds) — see :func:`exact_runner_up`."""
         with self.lock:
-            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster)
+            return self._run(angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster, keep)
 
     def first_max(self, angles, ts) -> tuple[float, int, tuple[int, int]] | None:
         """The first maximum of the exact values over ``angles`` (in that order) × translations ``ts``
@@ -144,7 +148,7 @@ class Searcher:
         inc, _ = self.run(angles, mode=1, tmask=self.translation_mask(ts), sector0=1, raster=True)
         return float(inc[0]), int(inc[3]), (int(inc[4]), int(inc[5]))
 
-    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster=False):
+    def _run(self, angles, mode, amask, tmask, inc, excl, sector0, budget, init, raster=False, keep=-1.0):
         p = self.p
         angles = np.asarray(angles, np.float64)
         rot = self._use(angles)
@@ -156,14 +160,15 @@ class Searcher:
         env = np.full(angles.size, -np.inf)
         ctx_i = np.array([p.n, p.k, p.measure.code, mode, int(p.measure.needs_free_agree), sector0, budget,
                           p.floor], np.int64)
-        nb, ne, self.complete = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
+        nb, ne, self.complete, fr_nodes, fr_vals = branch_and_bound(p.ctx_f, ctx_i, p.ref, p.cols, p.rows, p.qr, p.qc, p.ilo, p.ihi, p.jlo, p.jhi,
                                   p.axes_r, p.axes_c, p.blk, p.blkf, p.lvl_start, p.wr0, p.wc0, p.mstates, p.cls_sat,
                                   angles, rot, amask, tmask, _raster(side) if raster else p.rank, p.tsum,
                                   self.angle_sums(),
                                   excl_a, excl_t, self.slots_dense, self.slots_pocc, self.slot_angle,
                                   self.slot_counts, inc, env,
                                   *(_NO_INIT if init is None else init), p.occ_x, p.occ_y,
-                                  self.mark, self.gen, p.ref_sat, *self._points(angles))
+                                  self.mark, self.gen, p.ref_sat, *self._points(angles), float(keep))
+        self.frontier = (fr_nodes, fr_vals)
         self.stats["bounds"] += int(nb)
         self.stats["exact"] += int(ne)
         return inc, env
@@ -303,7 +308,8 @@ def fast_search(problem) -> Alignment:
     """The thesis's grid answer by branch and bound (see the module documentation); exact."""
     s = searcher_for(problem)
     # rotation only: every whole-degree angle bounded at once (polar cells), then the best-first search
-    inc, env = s.run(COARSE, init=s.initial_regions())
+    inc, env = s.run(COARSE, init=s.initial_regions(), keep=FRONTIER_KEEP)
+    caches.keep_frontier(problem, (*s.frontier, float(inc[0])))
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_env, kf = _fine(s, th_c, tc)
     value, counts = s.exact(float(angles[kf]), *tc)
@@ -335,14 +341,23 @@ def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budge
     the best exact value found within it (exact when the search completed; a real placement always).
     ``envelope``: per coarse angle an upper bound of its values over the window (the fast search's
     profile, Lemma 5): the search starts from one region per angle with that bound, so angles whose
-    bound is below ``floor`` are never searched."""
+    bound is below ``floor`` are never searched. Better, when the fast search of this very problem
+    object ran and ``floor`` is within ``FRONTIER_KEEP`` of its best coarse value: the search starts from
+    that search's frontier — the regions it dropped and the elements it evaluated with a bound at least
+    its incumbent − FRONTIER_KEEP (every element scoring ≥ floor lies in one of them, Lemma 5b)."""
     far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
     if not far.any():
         return float("nan"), float("nan")
     inc = None if floor is None else np.array([np.nextafter(floor, -np.inf), -1, -1, -1, 0, 0, 0, 0, 0])
     s = searcher_for(problem)
     init = None
-    if envelope is not None:
+    fr = caches.frontier(problem) if floor is not None else None
+    if fr is not None and floor >= fr[2] - FRONTIER_KEEP:
+        sel = fr[1] >= floor
+        if not sel.any():
+            return float("nan"), float("nan")
+        init = (np.ascontiguousarray(fr[0][sel]), np.ascontiguousarray(fr[1][sel]))
+    elif envelope is not None:
         side = s.p.side
         nodes = np.zeros((COARSE.size, 6), np.int64)
         nodes[:, 0] = nodes[:, 1] = np.arange(COARSE.size)

@@ -365,6 +365,22 @@ def _heap_pop(hv, hi, size):
 
 
 @njit(cache=True, nogil=True)
+def _keep(fr_nodes, fr_vals, n_fr, lo, hi, a0, a1, b0, b1, v):
+    """Append a region (angles lo..hi, box a0..a1 × b0..b1) and its bound to the frontier arrays."""
+    if n_fr >= fr_nodes.shape[0]:
+        grown = np.empty((2 * fr_nodes.shape[0] + 256, 6), np.int64)
+        grown[:n_fr] = fr_nodes[:n_fr]
+        fr_nodes = grown
+        grown_v = np.empty(grown.shape[0], np.float64)
+        grown_v[:n_fr] = fr_vals[:n_fr]
+        fr_vals = grown_v
+    fr_nodes[n_fr, 0], fr_nodes[n_fr, 1] = lo, hi
+    fr_nodes[n_fr, 2], fr_nodes[n_fr, 3], fr_nodes[n_fr, 4], fr_nodes[n_fr, 5] = a0, a1, b0, b1
+    fr_vals[n_fr] = v
+    return fr_nodes, fr_vals
+
+
+@njit(cache=True, nogil=True)
 def _before(v, p, s, iv, ip, is_):
     """Whether the key (v, −p, −s) comes before (is greater than) (iv, −ip, −is)."""
     if v != iv:
@@ -379,7 +395,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                      axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, mstates, cls_sat,
                      angles, rot, amask, tmask, rank, tsum, asum, excl_a, excl_t,
                      slots_dense, slots_pocc, slot_angle, slot_counts, inc, env, init_nodes, init_vals,
-                     occ_x, occ_y, mark, gen, ref_sat, pre_start, pre_cnt, pre_buf):
+                     occ_x, occ_y, mark, gen, ref_sat, pre_start, pre_cnt, pre_buf, keep):
     """Best-first branch and bound over (angle sector, translation box) regions (Lemma 5).
 
     ctx_f = (res, res_m, mox, moy, mcx, mcy, half); ctx_i = (n, k, code, mode, need_ff, sector0, budget, floor).
@@ -389,8 +405,11 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     mode 0 orders elements by (value, −rank, −angle), mode 1 by (value, −angle, −rank).
     inc = [value, p, s, angle, a, b, agr, dis, ff]: the incumbent, updated in place; env: per angle,
     the largest bound or exact value seen (an upper envelope of the best value over translations).
-    ctx_i[6]: a budget of regions bounded (0: none). Returns (regions bounded, exact evaluations,
-    whether the search completed: the incumbent is then the answer)."""
+    ctx_i[6]: a budget of regions bounded (0: none). ``keep`` ≥ 0: the regions dropped, and the elements
+    evaluated, with a bound (value) at least the incumbent's value − keep at that moment are returned
+    (the frontier a later search for placements within ``keep`` of the answer can start from). Returns
+    (regions bounded, exact evaluations, whether the search completed: the incumbent is then the answer,
+    frontier regions (m, 6), their bounds (m))."""
     res, res_m, mox, moy, mcx, mcy, half = ctx_f[0], ctx_f[1], ctx_f[2], ctx_f[3], ctx_f[4], ctx_f[5], ctx_f[6]
     n, k, code, mode, need_ff, sector0 = ctx_i[0], ctx_i[1], ctx_i[2], ctx_i[3], ctx_i[4], ctx_i[5]
     budget = ctx_i[6]  # the most regions bounded (0: no limit); beyond it the incumbent is returned as is
@@ -444,6 +463,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
     p_tmp = np.empty(n * n, np.int32)
     r_lo, c_lo = axes_r[3], axes_c[3]
     r_hi, c_hi = r_lo + ref_sat.shape[0] - 2, c_lo + ref_sat.shape[1] - 2
+    fr_nodes = np.empty((256 if keep >= 0 else 0, 6), np.int64)
+    fr_vals = np.empty(fr_nodes.shape[0], np.float64)
+    n_fr = 0
     complete = True
     while size > 0:
         if budget > 0 and n_bounds >= budget:
@@ -475,6 +497,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         if bval != np.inf and not _before(bval, kp, ks, inc[0], inc[1], inc[2]):
             for x in range(lo, hi + 1):
                 env[x] = max(env[x], bval)
+            if keep >= 0 and bval >= inc[0] - keep:
+                fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, lo, hi, a0, a1, b0, b1, bval)
+                n_fr += 1
             continue
         single = lo == hi and a0 == a1 and b0 == b1
         if single:
@@ -514,6 +539,9 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             sy = slot_counts[slot, 0] if code == NCC else slot_counts[slot, 1]
             v = value_of(code, floor, agr, dis, ff, sx, sy, n * n)
             env[lo] = max(env[lo], v)
+            if keep >= 0 and v >= inc[0] - keep:
+                fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, lo, lo, a0, a0, b0, b0, v)
+                n_fr += 1
             if _before(v, kp, ks, inc[0], inc[1], inc[2]):
                 inc[0], inc[1], inc[2] = v, kp, ks
                 inc[3], inc[4], inc[5] = lo, a0 - k, b0 - k
@@ -644,4 +672,4 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
             # equal bounds (an incumbent sooner); the region keeps its own bound for the pruning test
             bounds_[cid] = ub
             size = _heap_push(hv, hi_, size, ub + (depth + 1) * 1e-12, cid)
-    return n_bounds, n_exact, complete
+    return n_bounds, n_exact, complete, fr_nodes[:n_fr], fr_vals[:n_fr]

@@ -94,15 +94,22 @@ def moving_points_all(mstates, res_m, ox, oy, cx, cy, n, res, rot, occ_x, occ_y)
     for x in range(n_ang):
         c = sparse_moving(mstates, res_m, ox, oy, cx, cy, n, res, rot[x, 0], rot[x, 1], rot[x, 2], rot[x, 3],
                           occ_x, occ_y, mark, x + 1, tmp)
-        if used + c > buf.size:
-            grown = np.empty(max(2 * buf.size, used + c), np.int32)
-            grown[:used] = buf[:used]
-            buf = grown
-        buf[used:used + c] = tmp[:c]
+        buf = _append(buf, used, tmp, c)
         start[x] = used
         cnt[x] = c
         used += c
     return start, cnt, buf[:used].copy()
+
+
+@njit(cache=True, nogil=True)
+def _append(buf, used, src, c):
+    """``src[:c]`` written at ``buf[used:]``, the buffer grown (doubled) when it is too small."""
+    if used + c > buf.size:
+        grown = np.empty(max(2 * buf.size, used + c), np.int32)
+        grown[:used] = buf[:used]
+        buf = grown
+    buf[used:used + c] = src[:c]
+    return buf
 
 
 @njit(cache=True, nogil=True)
@@ -598,26 +605,20 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                                           mh, mw, th_mid, half_rad, box, level)
             if k == 0:  # rotation only: one translation, the reference side alone
                 pass
-            elif clo == chi and pre_start[clo] >= 0:  # one angle: the moving side's bound too (Lemma 3b)
-                m_agr, m_dis = moving_bound(pre_buf, pre_start[clo], pre_cnt[clo], n, rows, cols, ref_sat, r_lo,
-                                            r_hi, c_lo, c_hi, box)
-                agr_hi = min(agr_hi, m_agr)
-                dis_lo += m_dis
-            elif clo == chi:
-                if p_start[clo] < 0:
-                    gen[0] += 1
-                    cnt = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[clo, 0], rot[clo, 1],
-                                        rot[clo, 2], rot[clo, 3], occ_x, occ_y, mark, gen[0], p_tmp)
-                    if p_used + cnt > p_buf.size:
-                        grown_p = np.empty(max(2 * p_buf.size, p_used + cnt), np.int32)
-                        grown_p[:p_used] = p_buf[:p_used]
-                        p_buf = grown_p
-                    p_buf[p_used:p_used + cnt] = p_tmp[:cnt]
-                    p_start[clo] = p_used
-                    p_cnt[clo] = cnt
-                    p_used += cnt
-                m_agr, m_dis = moving_bound(p_buf, p_start[clo], p_cnt[clo], n, rows, cols, ref_sat, r_lo, r_hi,
-                                            c_lo, c_hi, box)
+            elif clo == chi:  # one angle: the moving side's bound too (Lemma 3b)
+                if pre_start[clo] >= 0:  # its occupied lattice points given
+                    m_buf, m_start, m_cnt = pre_buf, pre_start[clo], pre_cnt[clo]
+                else:  # computed on first use
+                    if p_start[clo] < 0:
+                        gen[0] += 1
+                        cnt = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[clo, 0], rot[clo, 1],
+                                            rot[clo, 2], rot[clo, 3], occ_x, occ_y, mark, gen[0], p_tmp)
+                        p_buf = _append(p_buf, p_used, p_tmp, cnt)
+                        p_start[clo] = p_used
+                        p_cnt[clo] = cnt
+                        p_used += cnt
+                    m_buf, m_start, m_cnt = p_buf, p_start[clo], p_cnt[clo]
+                m_agr, m_dis = moving_bound(m_buf, m_start, m_cnt, n, rows, cols, ref_sat, r_lo, r_hi, c_lo, c_hi, box)
                 agr_hi = min(agr_hi, m_agr)
                 dis_lo += m_dis
             n_bounds += 1

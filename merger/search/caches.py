@@ -75,8 +75,9 @@ def frontier(problem):
 
 
 def clear_all() -> None:
-    """Forget every cached searcher and moving-map array (memory between independent runs, e.g. sweep
-    workers)."""
+    """Forget every cached searcher, moving-map array and search frontier (memory between independent
+    runs, e.g. sweep workers)."""
     with _LOCK:
+        _FRONTIERS.clear()
         _SEARCHERS.clear()
         _MOVING.clear()

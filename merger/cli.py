@@ -447,8 +447,19 @@ def overlay_title(res) -> str:
     o = res.chosen or res.top
     th = ", ".join(f"{k} {v:.1f}" for k, v in o.theta_deg.items() if k != res.frame)
     nus = " ".join(f"{v:.2f}" for v in o.nu.values())
-    verdict = "ACCEPTED" if o.accepted else f"REJECTED, written with --force ({o.reason})"
+    verdict = "ACCEPTED" if o.accepted else f"REJECTED, written with --force ({ascii_text(o.reason)})"
     return f"{'>'.join(o.order)}  theta deg: {th}  nu: {nus}  {verdict}"
+
+
+_ASCII = {"ν": "nu", "ω̃": "omega", "ω": "omega", "θ": "theta", "φ": "phi", "Δ": "d", "→": ">", "≥": ">=",
+          "≤": "<=", "×": "x", "°": " deg", "−": "-", "–": "-", "—": "-", "±": "+-", "…": "..."}
+
+
+def ascii_text(text: str) -> str:
+    """``text`` in ASCII for OpenCV's fonts: the merger's symbols spelt out, anything else as '?'."""
+    for k, v in _ASCII.items():
+        text = text.replace(k, v)
+    return text.encode("ascii", "replace").decode("ascii")
 
 
 def write_merge(res, maps: list[MapInput], out: Path, force: bool) -> list[Path]:

@@ -366,7 +366,9 @@ def test_overlay_picture_title_names_the_order_angles_nu_and_verdict(saved, tmp_
     assert title.isascii() and title.endswith("ACCEPTED") and ">".join(res.chosen.order) in title
     assert f"{res.chosen.theta_deg[maps[1].name]:.1f}" in title
     rejected = merge_team(maps, MergeParams(nu_min=0.99))
-    assert "REJECTED, written with --force" in overlay_title(rejected)
+    rejected_title = overlay_title(rejected)
+    assert "REJECTED, written with --force" in rejected_title and rejected_title.isascii()
+    assert "nu(" in rejected_title and "?" not in rejected_title  # the reason's ν spelt out, not lost
     args = ["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m")]
     assert main(args) == 0
     img = cv2.imread(str(tmp_path / "m_overlay.png"))

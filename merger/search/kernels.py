@@ -594,33 +594,6 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                         break
             if not any_t:
                 continue
-            th_mid = (angles[clo] + angles[chi]) / 2.0
-            half_rad = math.radians((angles[chi] - angles[clo]) / 2.0)
-            # the block level: blocks no wider than the region's own blur
-            blur = ((box[1] - box[0]) + (box[3] - box[2])) / 4.0 + 2.0 * math.sin(half_rad / 2.0) * rmax / res / 2.0
-            level = 0
-            while level + 2 < lvl_start.size and (1 << (level + 1)) <= blur:
-                level += 1
-            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
-                                          mh, mw, th_mid, half_rad, box, level)
-            if k == 0:  # rotation only: one translation, the reference side alone
-                pass
-            elif clo == chi:  # one angle: the moving side's bound too (Lemma 3b)
-                if pre_start[clo] >= 0:  # its occupied lattice points given
-                    m_buf, m_start, m_cnt = pre_buf, pre_start[clo], pre_cnt[clo]
-                else:  # computed on first use
-                    if p_start[clo] < 0:
-                        gen[0] += 1
-                        cnt = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[clo, 0], rot[clo, 1],
-                                            rot[clo, 2], rot[clo, 3], occ_x, occ_y, mark, gen[0], p_tmp)
-                        p_buf = _append(p_buf, p_used, p_tmp, cnt)
-                        p_start[clo] = p_used
-                        p_cnt[clo] = cnt
-                        p_used += cnt
-                    m_buf, m_start, m_cnt = p_buf, p_start[clo], p_cnt[clo]
-                m_agr, m_dis = moving_bound(m_buf, m_start, m_cnt, n, rows, cols, ref_sat, r_lo, r_hi, c_lo, c_hi, box)
-                agr_hi = min(agr_hi, m_agr)
-                dis_lo += m_dis
             n_bounds += 1
             sx_lo = 1 << 40
             sx_hi = -1
@@ -636,7 +609,51 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 for x in range(clo, chi + 1):
                     sy_lo = min(sy_lo, asum[x])
                     sy_hi = max(sy_hi, asum[x])
+            m_agr, m_dis = -1, 0
+            if k > 0 and clo == chi:  # one angle: the moving side's bound (Lemma 3b), first
+                if pre_start[clo] >= 0:  # its occupied lattice points given
+                    m_buf, m_start, m_cnt = pre_buf, pre_start[clo], pre_cnt[clo]
+                else:  # computed on first use
+                    if p_start[clo] < 0:
+                        gen[0] += 1
+                        cnt = sparse_moving(mstates, res_m, mox, moy, mcx, mcy, n, res, rot[clo, 0], rot[clo, 1],
+                                            rot[clo, 2], rot[clo, 3], occ_x, occ_y, mark, gen[0], p_tmp)
+                        p_buf = _append(p_buf, p_used, p_tmp, cnt)
+                        p_start[clo] = p_used
+                        p_cnt[clo] = cnt
+                        p_used += cnt
+                    m_buf, m_start, m_cnt = p_buf, p_start[clo], p_cnt[clo]
+                m_agr, m_dis = moving_bound(m_buf, m_start, m_cnt, n, rows, cols, ref_sat, r_lo, r_hi, c_lo, c_hi, box)
+                ub = upper_of(code, floor, m_agr, m_dis, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
+                if ub < inc[0]:
+                    # below the incumbent on the moving side alone: dropped now, as its visit would drop it
+                    # (the incumbent only grows; the reference side's bound would only lower ub)
+                    env[clo] = max(env[clo], ub)
+                    if keep >= 0 and ub >= inc[0] - keep:
+                        fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, clo, chi, box[0], box[1], box[2], box[3],
+                                                  ub)
+                        n_fr += 1
+                    continue
+            th_mid = (angles[clo] + angles[chi]) / 2.0
+            half_rad = math.radians((angles[chi] - angles[clo]) / 2.0)
+            # the block level: blocks no wider than the region's own blur
+            blur = ((box[1] - box[0]) + (box[3] - box[2])) / 4.0 + 2.0 * math.sin(half_rad / 2.0) * rmax / res / 2.0
+            level = 0
+            while level + 2 < lvl_start.size and (1 << (level + 1)) <= blur:
+                level += 1
+            agr_hi, dis_lo = region_bound(geo, axes_r, axes_c, blk, blkf, lvl_start, wr0, wc0, ilo, ihi, jlo, jhi, cls_sat,
+                                          mh, mw, th_mid, half_rad, box, level)
+            if m_agr >= 0:  # both sides (Lemma 3b)
+                agr_hi = min(agr_hi, m_agr)
+                dis_lo += m_dis
             ub = upper_of(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
+            if ub < inc[0]:  # dropped now, as its visit would drop it (the incumbent only grows)
+                for x in range(clo, chi + 1):
+                    env[x] = max(env[x], ub)
+                if keep >= 0 and ub >= inc[0] - keep:
+                    fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, clo, chi, box[0], box[1], box[2], box[3], ub)
+                    n_fr += 1
+                continue
             if n_free_ids > 0:
                 cid = free_ids[n_free_ids - 1]
                 n_free_ids -= 1

@@ -78,7 +78,6 @@ class Slam:
         # of log_odds.clamp, so that a wall seen for laps is not rewritten by a few scans at a drifted pose
         self.evidence = np.zeros_like(self.log_odds) if self.hits is not None else None
         self._lut = np.array([0.0, config.log_odds.miss, config.log_odds.hit], np.float32)
-        self._free_log_odds = math.log(config.free_thresh / (1.0 - config.free_thresh))
         self._drift = np.zeros(3)  # dx, dy (metres, in M_i), dyaw (radians)
         self._last_true: Pose | None = None
         self._prev_pose: Pose | None = None  # gmapping's rule: the path and turns since the last
@@ -255,8 +254,6 @@ class Slam:
         mask[hy[ok], hx[ok]] = _HIT
         if self.hits is not None:
             rows, cols = hy[ok] + r0, hx[ok] + c0
-            # a return in a cell the map holds free: something moved in (a teammate driving by), not a wall
-            self.hits.forget(rows, cols, self.evidence[rows, cols] <= self._free_log_odds)
             self.hits.add(rows, cols, pose.x + r[hit][ok] * cos[hit][ok], pose.y + r[hit][ok] * sin[hit][ok])
         inc = self._lut[mask]
         lo = self.log_odds[r0:r1, c0:c1]

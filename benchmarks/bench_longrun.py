@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_longrun.py                         # 10 min each of scene1, scene2, hall4
     python benchmarks/bench_longrun.py --duration 120 --scenes scene1 hall8
     python benchmarks/bench_longrun.py --model odometry_only   # the random-walk stress model
+    python benchmarks/bench_longrun.py --slam-only --scenes hall4 hall8   # SLAM pose errors alone, fast
 
 For every scenario it runs ``--duration`` simulated seconds (default 600) with the scenario's settings and
 ``slam.model`` = ``--model`` (default the scenario's: ``scan_matching``), and prints per simulated minute:
@@ -17,7 +18,10 @@ For every scenario it runs ``--duration`` simulated seconds (default 600) with t
   ``drift`` (drift-limited: right against the estimated-frame truth) among them;
 * ``pose cm`` / ``pose °``: the worst SLAM pose error of any robot within the minute (position, yaw).
 
-then the run's totals, rates per minute and its realtime factor. It is a benchmark, not a test: it asserts
+then the run's totals, rates per minute and its realtime factor. ``--slam-only`` drives the world, the lasers
+and the SLAMs alone (no map is published, sent or merged; the SLAM does not depend on merging, so its poses
+are the same as in the full run) and prints each robot's worst pose error per minute, 10–30× faster than
+real time. It is a benchmark, not a test: it asserts
 nothing (the issue's targets: 0 false merges, pose error < 1° and 5 cm at every minute with no growth
 from lap to lap, refused correct cycles after the first merge < 5% of cycles). Heavy: 10 minutes of one
 scenario take several minutes of wall time on two cores.
@@ -37,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from circsim.config.scenario import bundled_scenarios, load_scenario  # noqa: E402
 from circsim.events import Observer  # noqa: E402
 from circsim.sim import Simulation  # noqa: E402
+from circsim.world.laser import scan as laser_scan  # noqa: E402
 
 
 class PerMinute(Observer):
@@ -107,6 +112,43 @@ def run(name: str, duration: float, model: str | None, seed: int | None, extra=(
           f"worst SLAM pose error {tot['pose_cm']:.2f} cm / {tot['pose_deg']:.2f}°; first merges {firsts}")
 
 
+def run_slam_only(name: str, duration: float, model: str | None, seed: int | None, extra=()) -> None:
+    """World, lasers and SLAMs only: each robot's worst SLAM pose error per simulated minute."""
+    sets = [f"duration_s={duration}", "output.rrd=null", "output.json=null", *extra]
+    if model:
+        sets.append(f"slam.model={model}")
+    if seed is not None:
+        sets.append(f"seed={seed}")
+    sc = load_scenario(bundled_scenarios()[name]).with_overrides(sets)
+    sim = Simulation(sc)
+    names = list(sim.robots)
+    worst: dict[int, dict[str, list[float]]] = defaultdict(lambda: {n: [0.0, 0.0] for n in names})
+    t0 = time.perf_counter()
+    for k in range(int(math.floor(sc.duration_s / sc.dt_s + 1e-9)) + 1):
+        t = k * sc.dt_s
+        poses = {n: sim.pose(r, t) for n, r in sim.robots.items()}
+        for n, p in poses.items():
+            sim.world.set_robot_pose(n, *p)
+        for n, r in sim.robots.items():
+            est = r.slam.update(poses[n], laser_scan(sim.world, n, poses[n], r.laser_rng, config=sc.laser, stamp=t))
+            (ex, ey, eyaw), (tx, ty, tyaw) = sim._est_in_world(n, est), poses[n]
+            w = worst[int(t // 60)][n]
+            w[0] = max(w[0], 100.0 * math.hypot(ex - tx, ey - ty))
+            w[1] = max(w[1], abs(math.degrees((eyaw - tyaw + math.pi) % (2 * math.pi) - math.pi)))
+    wall = time.perf_counter() - t0
+    print(f"\n{name} SLAM only (seed {sc.seed}, slam.model {sc.slam.model}, {len(names)} robots): "
+          f"{sc.duration_s:.0f} s simulated in {wall:.0f} s wall (realtime factor {sc.duration_s / wall:.1f}); "
+          f"worst pose error per minute, cm / °")
+    print(f"{'minute':>6} " + " ".join(f"{n[:12]:>13}" for n in names) + f" {'worst':>13}")
+    top = [0.0, 0.0]
+    for m in sorted(worst):
+        row = [worst[m][n] for n in names]
+        w = [max(c[0] for c in row), max(c[1] for c in row)]
+        top = [max(top[0], w[0]), max(top[1], w[1])]
+        print(f"{m:>6} " + " ".join(f"{c[0]:6.2f}/{c[1]:5.2f}" for c in row) + f" {w[0]:6.2f}/{w[1]:5.2f}")
+    print(f"total: worst SLAM pose error {top[0]:.2f} cm / {top[1]:.2f}°")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--duration", type=float, default=600.0, help="simulated seconds per scenario (600)")
@@ -115,9 +157,11 @@ def main(argv=None) -> int:
                    help="slam.model (default: the scenario's)")
     p.add_argument("--seed", type=int, default=None, help="override the scenarios' seeds")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scenario overrides")
+    p.add_argument("--slam-only", action="store_true",
+                   help="world, lasers and SLAMs only (no merging): each robot's worst pose error per minute")
     a = p.parse_args(argv)
     for name in a.scenes:
-        run(name, a.duration, a.model, a.seed, a.set)
+        (run_slam_only if a.slam_only else run)(name, a.duration, a.model, a.seed, a.set)
     return 0
 
 

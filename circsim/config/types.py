@@ -245,18 +245,39 @@ class MatcherConfig:
         0.03 m, measured on the bundled scenes (10-minute runs): 0.02 lets hall8's co-rotating
         teammates pull the poses (1.2° in 2 s), 0.05 trusts the odometry so much that hall4's poses ran
         away after five minutes (57 cm, 7.8°); at 0.03 hall4 held 8 cm / 1.2° for 7 minutes.
-    min_log_odds : cells below this log-odds are not matched (0.5: one hit of the default 0.85 is
-        enough; more hits delay the matching of what a sparse gmapping-rule map has just seen, and the
-        thesis scenes then drift by degrees). Cells hit while the map held them free are never matched:
-        a teammate driving by would drag the pose along its path (measured on hall4: a robot's yaw
-        drifted −1.6° in 30 s matching every occupied cell).
+    min_log_odds : cells below this log-odds (of the matcher's copy, below) are not matched: 3.5, about
+        five hits net of misses (half a second of a surface seen at every 10 Hz scan; the published map's
+        clamp, so a cell as certain as the published map can hold it). While the map has fewer
+        integrated scans the floor is 0.99·hit per scan integrated, so the first scans match what there
+        is. This is what keeps teammates out of the match: a teammate that drives with the robot round
+        the circle looks still to it, but in the map its body crosses a cell in about as many scans as
+        the cell needs to reach the floor, and its trace is then cleared by the beams that pass through.
+        Measured (SLAM only, 180–300 s, the scenarios' seeds): with 0.5 (one hit) the first seconds'
+        matches against teammates' fresh traces lag behind the robot's turn, and the map's frame is
+        baked in off by 0.9° (hall4) to 1.4° (hall8) within the first minute; with 3.5 both stay within
+        0.8°. 6 and 10 measured the same within the seeds' spread. (Until 2026-12-02 a cell hit while the
+        map held it free was never matched again; that rule also dropped the cells in front of every
+        surface, where returns with negative noise land after grazing beams cleared them: the walls left
+        lay ~3.5 mm behind the true surface on average and pulled every robot towards the objects in
+        its view, 0.8 cm off on hall4's exact map. It is gone: the floor does its work.)
+    evidence_clamp : the clamp of the matcher's own copy of the log-odds grid (the published map keeps
+        ``log_odds.clamp``). gmapping keeps per-cell hit and visit counts without bound, so a wall seen
+        for laps is not rewritten by a few scans at a slightly drifted pose; with the published map's
+        clamp 3.5 (hit 0.85, miss −0.4) nine misses turn any wall cell free, the map follows the pose's
+        small errors and the drift becomes self-consistent. 1000 (about 1200 hits: unbounded over a
+        10-minute run, as gmapping's counts). Measured on hall4 (600 s, SLAM only, before the
+        ``min_log_odds`` change): with 3.5 the worst pose error crept from 6.1 cm / 0.93° (minute 0) to
+        7.8 cm / 1.30° (minute 9), hall8's from 6.6 cm / 1.42° to 17.5 cm / 1.75°; with 1000 they stay
+        at their first lap's 5.9 cm / 1.08° and 6.9 cm / 1.56°, as with the map frozen after the first
+        lap.
     """
 
     linear_window_m: float = 0.1
     angular_window_deg: float = 20.0
     max_points: int = 200
     point_sigma_m: float = 0.03
-    min_log_odds: float = 0.5
+    min_log_odds: float = 3.5
+    evidence_clamp: float = 1000.0
 
 
 @dataclass(frozen=True)

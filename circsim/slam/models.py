@@ -74,8 +74,10 @@ class Slam:
         self.log_odds = np.zeros((self.size_cells, self.size_cells), np.float32)
         # where, within each cell, the returns fell (the matcher's sub-cell walls); scan_matching only
         self.hits = scanmatch.HitMeans(self.log_odds.shape) if config.model == "scan_matching" else None
+        # the matcher's map (scan_matching only): the same log-odds clamped at matcher.evidence_clamp instead
+        # of log_odds.clamp, so that a wall seen for laps is not rewritten by a few scans at a drifted pose
+        self.evidence = np.zeros_like(self.log_odds) if self.hits is not None else None
         self._lut = np.array([0.0, config.log_odds.miss, config.log_odds.hit], np.float32)
-        self._free_log_odds = math.log(config.free_thresh / (1.0 - config.free_thresh))
         self._drift = np.zeros(3)  # dx, dy (metres, in M_i), dyaw (radians)
         self._last_true: Pose | None = None
         self._prev_pose: Pose | None = None  # gmapping's rule: the path and turns since the last
@@ -184,7 +186,7 @@ class Slam:
         k = m.point_sigma_m / (res * math.sqrt(px.size))
         w_t = k / max(math.sqrt(self._var_xy), MIN_SIGMA_M)
         w_r = k / max(math.sqrt(self._var_yaw), MIN_SIGMA_RAD)
-        self.last_match = scanmatch.match(self.log_odds, self.hits, self.origin, res, self.config.log_odds.clamp, px, py,
+        self.last_match = scanmatch.match(self.evidence, self.hits, self.origin, res, self.config.log_odds.clamp, px, py,
                                           nx, ny, (e.x, e.y, e.yaw), lin, ang, w_t, w_r,
                                           min(m.min_log_odds, 0.99 * self.updates * self.config.log_odds.hit))
         self._est = Pose(self.last_match.x, self.last_match.y, _wrap_pi(self.last_match.yaw))
@@ -252,12 +254,16 @@ class Slam:
         mask[hy[ok], hx[ok]] = _HIT
         if self.hits is not None:
             rows, cols = hy[ok] + r0, hx[ok] + c0
-            # a return in a cell the map holds free: something moved in (a teammate driving by), not a wall
-            self.hits.forget(rows, cols, self.log_odds[rows, cols] <= self._free_log_odds)
             self.hits.add(rows, cols, pose.x + r[hit][ok] * cos[hit][ok], pose.y + r[hit][ok] * sin[hit][ok])
+        inc = self._lut[mask]
         lo = self.log_odds[r0:r1, c0:c1]
-        lo += self._lut[mask]
+        lo += inc
         np.clip(lo, -self.config.log_odds.clamp, self.config.log_odds.clamp, out=lo)
+        if self.evidence is not None:
+            ev = self.evidence[r0:r1, c0:c1]
+            ev += inc
+            c = self.config.matcher.evidence_clamp
+            np.clip(ev, -c, c, out=ev)
 
     # --- output -------------------------------------------------------------------------------
     def grid(self) -> OccupancyGrid:

@@ -25,7 +25,7 @@ Two stages, as Cartographer's 2D local SLAM does them (``RealTimeCorrelativeScan
    or |S(p) − μ| for a point without one; beyond two cells a point is an outlier.
 
 The correlative score of a cell is its log-odds clipped to [0, clamp] over clamp. Cells below
-``min_log_odds``, and cells hit while free (:meth:`HitMeans.forget`), are not matched. A cell (row r,
+``min_log_odds`` are not matched. A cell (row r,
 column c) spans [origin + c·res, origin + (c + 1)·res) in x (rows in y), as in
 :class:`merger.grid.OccupancyGrid`.
 
@@ -63,11 +63,10 @@ class Match:
 
 class HitMeans:
     """Per cell, the sum of the scan returns (map-frame x, y) that fell in it and their count: the cell's
-    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A cell hit while
-    the map held it free is forgotten for good (its count is −∞): the return came from something that moved
-    in (a teammate driving by), and matching scans to its trace would drag the pose along its path. A wall is
-    unknown until its first hit. (Forgetting instead every cell once seen free selects the same cells for
-    matching: one seen free is below ``min_log_odds`` until hit again, and then it is hit while free.)"""
+    mean hit, where its wall really is within the cell (gmapping's ``PointAccumulator``). A wall is unknown
+    until its first hit. Which cells are matched is the log-odds' business (``min_log_odds``): a
+    teammate's body crosses a cell in less time than a wall takes to get there, and its trace is then
+    cleared by the beams that pass through it."""
 
     def __init__(self, shape) -> None:
         self.sum_x = np.zeros(shape, np.float64)
@@ -79,11 +78,6 @@ class HitMeans:
         _accumulate(self.sum_x, self.sum_y, self.count, np.ascontiguousarray(rows, np.int64),
                     np.ascontiguousarray(cols, np.int64), np.ascontiguousarray(x, np.float64),
                     np.ascontiguousarray(y, np.float64))
-
-
-    def forget(self, rows: np.ndarray, cols: np.ndarray, which: np.ndarray) -> None:
-        """Forget the cells (rows, cols) where ``which`` is set: they are never matched again."""
-        self.count[rows[which], cols[which]] = -np.inf
 
 
 @njit(cache=True, nogil=True)
@@ -167,7 +161,7 @@ def match(log_odds: np.ndarray, hits: HitMeans, origin, resolution_m: float, cla
     n_lin = max(1, int(math.ceil(linear_window_m / resolution_m - 1e-9)))
     n_ang = max(1, int(math.ceil(angular_window_rad / step - 1e-9)))
     ox, oy = float(origin[0]), float(origin[1])
-    floor = max(float(min(min_log_odds, clamp)), 1e-6)  # cells below it are not matched
+    floor = max(float(min_log_odds), 1e-6)  # cells below it are not matched (the clamp only scales scores)
     x, y, th, score = correlative_search(log_odds, hits.count, ox, oy, resolution_m, clamp, floor, px, py, float(pred[0]),
                                          float(pred[1]), float(pred[2]), n_lin, n_ang, step, CSM_DELTA_WEIGHT,
                                          CSM_DELTA_WEIGHT)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from circsim.config.scenario import bundled_scenarios, load_scenario
-from circsim.config.types import DriftConfig, LaserConfig, OdometryConfig, SlamConfig
+from circsim.config.types import DriftConfig, LaserConfig, MatcherConfig, OdometryConfig, SlamConfig
 from circsim.slam.models import Slam, scanmatch
 from circsim.world.laser import LaserScan, scan
 from circsim.world.motion import trajectories
@@ -265,3 +265,71 @@ def test_featureless_corridor_error_grows_along_the_corridor_only():
                       for k in range(1001)]
     closed, _ = drive(room, "r", back_and_forth, cfg=cfg)
     assert np.abs(closed[:, 0]).max() < 0.05 and np.abs(closed[:, 1]).max() < 0.05
+
+
+def drive_in_formation(name, robot, laps, slam_cfg=None, seed=0):
+    """``robot`` of scenario ``name`` drives ``laps`` laps of its circle at 10 Hz with every teammate
+    driving its own circle too (a formation that turns with it and so looks still to it); the SLAM's
+    errors (m, m, deg) and the lap of each scan."""
+    sc = load_scenario(bundled_scenarios()[name])
+    world = World.from_scenario(sc)
+    trajs = trajectories(sc)
+    lap_s = 2 * math.pi * sc.robots.radius_m / sc.robots.speed_mps
+    times = np.arange(0.0, laps * lap_s, sc.dt_s)
+    rng = np.random.default_rng(seed)
+    slam = Slam(slam_cfg or sc.slam, trajs[robot].start_pose(), np.random.default_rng(seed + 1))
+    errs = []
+    for t in times:
+        for n, tr in trajs.items():
+            world.set_robot_pose(n, *tr.pose_at(t))
+        p = trajs[robot].pose_at(t)
+        est = slam.update(p, scan(world, robot, p, rng, config=sc.laser))
+        e = slam.true_pose_in_map(p)
+        errs.append((est.x - e.x, est.y - e.y, math.degrees((est.yaw - e.yaw + math.pi) % (2 * math.pi) - math.pi)))
+    return np.array(errs), (times // lap_s).astype(int)
+
+
+@pytest.mark.parametrize("robot", ["Perth", "Dakar"])
+def test_a_robot_among_co_rotating_teammates_keeps_its_pose_error_bounded(robot):
+    """hall8: 14 x 10 m under a 5.6 m laser, seven teammates on the robot's 2.5 m circle turning with it.
+    Over three laps the pose error stays below 5 cm and 1° and does not grow from lap to lap. (Matching
+    cells after one hit and letting nine misses rewrite a wall, as the matcher did before 2026-12-02, this
+    failed: the first seconds' matches against the teammates' fresh traces baked a 1.3–1.4° error into
+    the map, and the map, rewritten at the drifted poses, let it grow.)"""
+    errs, lap = drive_in_formation("hall8", robot, 3)
+    pos, yaw = np.hypot(errs[:, 0], errs[:, 1]), np.abs(errs[:, 2])
+    per_lap = [(pos[lap == k].max(), yaw[lap == k].max()) for k in range(3)]
+    assert max(p for p, _ in per_lap) < 0.05 and max(y for _, y in per_lap) < 1.0, per_lap
+    assert per_lap[2][0] < per_lap[0][0] + 0.01 and per_lap[2][1] < per_lap[0][1] + 0.15, per_lap
+
+
+def test_a_wall_seen_for_many_scans_is_not_rewritten_by_a_few_scans_at_a_drifted_pose():
+    """The matcher's copy of the grid (``evidence``, clamped at ``matcher.evidence_clamp``) keeps a wall's
+    history: 200 scans of a wall 2 m ahead, then 20 from a pose estimate 10 cm behind the true one (their
+    beams cross the wall's cell). The published grid (clamp 3.5) has moved the wall; the matcher's copy
+    still holds it where 200 scans put it."""
+    w = World()
+    w.add_wall((2.02, -3.0), (2.02, 3.0))
+    w.add_robot("r", 0.18)
+    slam = Slam(SlamConfig(), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    s = scan(w, "r", (0.0, 0.0, 0.0), np.random.default_rng(1), config=LaserConfig(noise_std_m=0.0))
+    for _ in range(200):
+        slam._integrate(slam.estimated_pose(), s)
+    drifted = type(slam.estimated_pose())(0.1, 0.0, 0.0)  # the wall lands 10 cm farther: two cells
+    for _ in range(20):
+        slam._integrate(drifted, s)
+    res, (ox, oy) = slam.config.resolution_m, slam.origin
+    row = int((0.0 - oy) / res)
+    wall, moved = int((2.02 - ox) / res), int((2.12 - ox) / res)
+    assert slam.log_odds[row, wall] < 0 < slam.log_odds[row, moved]  # published: the wall moved
+    floor = slam.config.matcher.min_log_odds
+    assert slam.evidence[row, wall] >= floor  # matched: the wall stays where it was
+    assert slam.evidence[row, moved] > floor  # (the drifted scans' wall is there too, weaker)
+    assert slam.evidence[row, wall] > 5 * slam.evidence[row, moved]
+    # with the published map's clamp for the matcher too, the history is gone
+    c = Slam(SlamConfig(matcher=MatcherConfig(evidence_clamp=3.5)), (0.0, 0.0, 0.0), np.random.default_rng(0))
+    for _ in range(200):
+        c._integrate(c.estimated_pose(), s)
+    for _ in range(20):
+        c._integrate(drifted, s)
+    assert c.evidence[row, wall] < floor <= c.evidence[row, moved]

@@ -78,13 +78,18 @@ class PerMinute(Observer):
             self.first_correct[c.robot] = c.t
 
 
-def run(name: str, duration: float, model: str | None, seed: int | None, extra=()) -> None:
+def scenario(name: str, duration: float, model: str | None, seed: int | None, extra=()):
+    """The bundled scenario ``name`` for ``duration`` simulated seconds, no outputs, with the options' overrides."""
     sets = [f"duration_s={duration}", "output.rrd=null", "output.json=null", *extra]
     if model:
         sets.append(f"slam.model={model}")
     if seed is not None:
         sets.append(f"seed={seed}")
-    sc = load_scenario(bundled_scenarios()[name]).with_overrides(sets)
+    return load_scenario(bundled_scenarios()[name]).with_overrides(sets)
+
+
+def run(name: str, duration: float, model: str | None, seed: int | None, extra=()) -> None:
+    sc = scenario(name, duration, model, seed, extra)
     obs = PerMinute()
     t0 = time.perf_counter()
     res = Simulation(sc, [obs]).run()
@@ -114,12 +119,7 @@ def run(name: str, duration: float, model: str | None, seed: int | None, extra=(
 
 def run_slam_only(name: str, duration: float, model: str | None, seed: int | None, extra=()) -> None:
     """World, lasers and SLAMs only: each robot's worst SLAM pose error per simulated minute."""
-    sets = [f"duration_s={duration}", "output.rrd=null", "output.json=null", *extra]
-    if model:
-        sets.append(f"slam.model={model}")
-    if seed is not None:
-        sets.append(f"seed={seed}")
-    sc = load_scenario(bundled_scenarios()[name]).with_overrides(sets)
+    sc = scenario(name, duration, model, seed, extra)
     sim = Simulation(sc)
     names = list(sim.robots)
     worst: dict[int, dict[str, list[float]]] = defaultdict(lambda: {n: [0.0, 0.0] for n in names})

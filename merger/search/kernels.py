@@ -388,6 +388,18 @@ def _keep(fr_nodes, fr_vals, n_fr, lo, hi, a0, a1, b0, b1, v):
 
 
 @njit(cache=True, nogil=True)
+def _dropped(env, lo, hi, a0, a1, b0, b1, v, inc0, keep, fr_nodes, fr_vals, n_fr):
+    """A region dropped with bound ``v`` (below the incumbent ``inc0``): the envelope of its angles
+    raised to ``v``, and the region kept in the frontier when ``v`` ≥ inc0 − ``keep`` (Lemma 5b)."""
+    for x in range(lo, hi + 1):
+        env[x] = max(env[x], v)
+    if keep >= 0 and v >= inc0 - keep:
+        fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, lo, hi, a0, a1, b0, b1, v)
+        n_fr += 1
+    return fr_nodes, fr_vals, n_fr
+
+
+@njit(cache=True, nogil=True)
 def _before(v, p, s, iv, ip, is_):
     """Whether the key (v, −p, −s) comes before (is greater than) (iv, −ip, −is)."""
     if v != iv:
@@ -502,11 +514,7 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
         else:
             kp, ks = amin, rmin
         if bval != np.inf and not _before(bval, kp, ks, inc[0], inc[1], inc[2]):
-            for x in range(lo, hi + 1):
-                env[x] = max(env[x], bval)
-            if keep >= 0 and bval >= inc[0] - keep:
-                fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, lo, hi, a0, a1, b0, b1, bval)
-                n_fr += 1
+            fr_nodes, fr_vals, n_fr = _dropped(env, lo, hi, a0, a1, b0, b1, bval, inc[0], keep, fr_nodes, fr_vals, n_fr)
             continue
         single = lo == hi and a0 == a1 and b0 == b1
         if single:
@@ -628,11 +636,8 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 if ub < inc[0]:
                     # below the incumbent on the moving side alone: dropped now, as its visit would drop it
                     # (the incumbent only grows; the reference side's bound would only lower ub)
-                    env[clo] = max(env[clo], ub)
-                    if keep >= 0 and ub >= inc[0] - keep:
-                        fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, clo, chi, box[0], box[1], box[2], box[3],
-                                                  ub)
-                        n_fr += 1
+                    fr_nodes, fr_vals, n_fr = _dropped(env, clo, chi, box[0], box[1], box[2], box[3], ub, inc[0], keep,
+                                                       fr_nodes, fr_vals, n_fr)
                     continue
             th_mid = (angles[clo] + angles[chi]) / 2.0
             half_rad = math.radians((angles[chi] - angles[clo]) / 2.0)
@@ -648,11 +653,8 @@ def branch_and_bound(ctx_f, ctx_i, ref, cols, rows, qr, qc, ilo, ihi, jlo, jhi,
                 dis_lo += m_dis
             ub = upper_of(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n * n)
             if ub < inc[0]:  # dropped now, as its visit would drop it (the incumbent only grows)
-                for x in range(clo, chi + 1):
-                    env[x] = max(env[x], ub)
-                if keep >= 0 and ub >= inc[0] - keep:
-                    fr_nodes, fr_vals = _keep(fr_nodes, fr_vals, n_fr, clo, chi, box[0], box[1], box[2], box[3], ub)
-                    n_fr += 1
+                fr_nodes, fr_vals, n_fr = _dropped(env, clo, chi, box[0], box[1], box[2], box[3], ub, inc[0], keep,
+                                                   fr_nodes, fr_vals, n_fr)
                 continue
             if n_free_ids > 0:
                 cid = free_ids[n_free_ids - 1]

@@ -1,5 +1,5 @@
-"""The search's caches: the prepared searcher of the last problems, the moving maps' own arrays, and
-:func:`clear_all`.
+"""The search's caches: the prepared searcher of the last problems, the moving maps' own arrays, the
+reference geometries' lattice tables, and :func:`clear_all`.
 
 A merge cycle asks several questions of one problem object (the answer, then perhaps the runner-up,
 the guard beyond the window, a rival's values): they share one :class:`merger.search.engine.Searcher`
@@ -57,6 +57,27 @@ def moving_side(grid, key: tuple, factory):
     return value
 
 
+GEOMETRY_ENTRIES = 32
+_GEOMETRY: OrderedDict = OrderedDict()
+
+
+def geometry(key: tuple, factory):
+    """Arrays that depend on a reference map's geometry alone (``key``: its origin, resolution, size, the
+    center, the ROI and the window), kept for the last ``GEOMETRY_ENTRIES`` geometries: a robot's map
+    keeps its frame and its center while it grows, so every version of it is prepared from the same."""
+    with _LOCK:
+        hit = _GEOMETRY.get(key)
+        if hit is not None:
+            _GEOMETRY.move_to_end(key)
+            return hit
+    value = factory()
+    with _LOCK:
+        _GEOMETRY[key] = value
+        while len(_GEOMETRY) > GEOMETRY_ENTRIES:
+            _GEOMETRY.popitem(last=False)
+    return value
+
+
 # the fast search's frontier per problem object, for as long as the problem lives (a runner-up search of
 # the same problem starts from it: merger.search.engine.exact_runner_up); keyed by the object itself, so
 # what a later search finds never depends on what else was cached meanwhile
@@ -75,9 +96,10 @@ def frontier(problem):
 
 
 def clear_all() -> None:
-    """Forget every cached searcher, moving-map array and search frontier (memory between independent
+    """Forget every cached searcher, moving-map array, reference geometry and search frontier (memory between independent
     runs, e.g. sweep workers)."""
     with _LOCK:
         _FRONTIERS.clear()
         _SEARCHERS.clear()
         _MOVING.clear()
+        _GEOMETRY.clear()

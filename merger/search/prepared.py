@@ -22,6 +22,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from ..grid import FREE_S, OCCUPIED_S
 from . import caches
@@ -91,22 +92,102 @@ def _axis(raw: np.ndarray, size: int):
     return (lo, hi, base, dev, int(wmax.max()), start, end, wmax.astype(np.int64), skipped)
 
 
-def _sat(mask: np.ndarray) -> np.ndarray:
-    """Summed-area table with a zero border."""
-    out = np.zeros((mask.shape[0] + 1, mask.shape[1] + 1), np.int64)
-    out[1:, 1:] = np.cumsum(np.cumsum(mask, axis=0, dtype=np.int64), axis=1)
+@njit(cache=True, nogil=True)
+def class_sat(states, r0, r1, c0, c1):
+    """Summed-area table (zero border) of (occupied << 32 | free) over ``states[r0:r1, c0:c1]``: both
+    counts of a rectangle in four reads."""
+    out = np.zeros((r1 - r0 + 1, c1 - c0 + 1), np.int64)
+    for i in range(r1 - r0):
+        row = np.int64(0)
+        for j in range(c1 - c0):
+            s = states[r0 + i, c0 + j]
+            if s == 2:
+                row += np.int64(1) << 32
+            elif s == 1:
+                row += 1
+            out[i + 1, j + 1] = out[i, j + 1] + row
     return out
 
 
+@njit(cache=True, nogil=True)
+def _occupied_near(ms, ox0, oy0, res, cmx, cmy, half):
+    """The centres about c_m (metres) of the occupied cells within ``half`` + one cell of it, row-major."""
+    h, w = ms.shape
+    xs = np.empty(h * w, np.float64)
+    ys = np.empty(h * w, np.float64)
+    n = 0
+    for r in range(h):
+        y = oy0 + (r + 0.5) * res - cmy
+        if abs(y) > half + res:
+            continue
+        for c in range(w):
+            if ms[r, c] == 2:
+                x = ox0 + (c + 0.5) * res - cmx
+                if abs(x) <= half + res:
+                    xs[n] = x
+                    ys[n] = y
+                    n += 1
+    return xs[:n].copy(), ys[:n].copy()
+
+
 def _moving_arrays(mov, ms, cm, half):
-    """The moving map's summed-area table of (occupied << 32 | free) (both counts of a rectangle in four
-    reads) and the centres about c_m (metres) of the occupied cells a lattice point can read."""
-    cls_sat = _sat((ms == OCCUPIED_S).astype(np.int64) << 32 | (ms == FREE_S).astype(np.int64))
-    rr, cc = np.nonzero(ms == OCCUPIED_S)
-    ox_ = mov.origin[0] + (cc + 0.5) * mov.resolution - cm[0]
-    oy_ = mov.origin[1] + (rr + 0.5) * mov.resolution - cm[1]
-    near = (np.abs(ox_) <= half + mov.resolution) & (np.abs(oy_) <= half + mov.resolution)
-    return cls_sat, np.ascontiguousarray(ox_[near]), np.ascontiguousarray(oy_[near])
+    """The moving map's :func:`class_sat` and the centres about c_m (metres) of the occupied cells a
+    lattice point can read."""
+    h, w = ms.shape
+    ox, oy = _occupied_near(ms, float(mov.origin[0]), float(mov.origin[1]), float(mov.resolution),
+                            float(cm[0]), float(cm[1]), float(half))
+    return class_sat(ms, 0, h, 0, w), ox, oy
+
+
+@njit(cache=True, nogil=True)
+def _pool_level(qr, qc, s, wr_cell, wc_cell, skip_r, skip_c, rlo, clo):
+    """The occupied cells (qr, qc) pooled in blocks of s × s cells, in (block row, block column) order:
+    per block its first row and column, its count, the count × the most lattice rows × columns reading
+    one of its cells, and 1 when no translation skips one of its rows or columns."""
+    br0 = qr.min() // s
+    bc0 = qc.min() // s
+    nbr = qr.max() // s - br0 + 1
+    nbc = qc.max() // s - bc0 + 1
+    cnt = np.zeros(nbr * nbc, np.int64)
+    wr = np.zeros(nbr * nbc, np.int64)
+    wc = np.zeros(nbr * nbc, np.int64)
+    for x in range(qr.size):
+        b = (qr[x] // s - br0) * nbc + (qc[x] // s - bc0)
+        cnt[b] += 1
+        wr[b] = max(wr[b], wr_cell[qr[x] - rlo])
+        wc[b] = max(wc[b], wc_cell[qc[x] - clo])
+    out = np.empty((np.count_nonzero(cnt), 5), np.int64)
+    n = 0
+    for b in range(nbr * nbc):
+        if cnt[b] == 0:
+            continue
+        r0 = (b // nbc + br0) * s
+        c0 = (b % nbc + bc0) * s
+        ok = 1
+        for d in range(s):
+            rr = r0 + d - rlo
+            cc = c0 + d - clo
+            if (0 <= rr < skip_r.size and skip_r[rr]) or (0 <= cc < skip_c.size and skip_c[cc]):
+                ok = 0
+        out[n, 0] = r0
+        out[n, 1] = c0
+        out[n, 2] = cnt[b]
+        out[n, 3] = cnt[b] * wr[b] * wc[b]
+        out[n, 4] = ok
+        n += 1
+    return out
+
+
+def _reference_axes(ref, center_ref, n, k):
+    """The lattice tables and both axes' bookkeeping: functions of the reference's geometry alone (its
+    origin, resolution and size, the center, n and k), kept per geometry (a robot's center and map
+    frame stay put while its map grows; never written to)."""
+    key = (center_ref, float(ref.origin[0]), float(ref.origin[1]), float(ref.resolution), ref.width, ref.height,
+           n, k)
+    return caches.geometry(key, lambda: (
+        ref_axes_numpy(ref, center_ref, n, k),
+        _axis(_raw_axis(center_ref[0], ref.origin[0], ref.resolution, n, k), ref.width),
+        _axis(_raw_axis(center_ref[1], ref.origin[1], ref.resolution, n, k), ref.height)))
 
 
 class Prepared:
@@ -122,9 +203,7 @@ class Prepared:
         self.res = ref.resolution
         side = 2 * self.k + 1
         self.side = side
-        self.cols, self.rows = ref_axes_numpy(ref, problem.center_ref, n, self.k)
-        ax_c = _axis(_raw_axis(problem.center_ref[0], ref.origin[0], ref.resolution, n, self.k), ref.width)
-        ax_r = _axis(_raw_axis(problem.center_ref[1], ref.origin[1], ref.resolution, n, self.k), ref.height)
+        (self.cols, self.rows), ax_c, ax_r = _reference_axes(ref, tuple(map(float, problem.center_ref)), n, self.k)
         self.ref = np.ascontiguousarray(ref.states)
         self.empty_ref = ax_c is None or ax_r is None
         if self.empty_ref:  # no translation reads any reference cell: a dummy axis, no occupied cells
@@ -142,8 +221,8 @@ class Prepared:
         self.blk, self.lvl_start = self._blocks()
         # the readable reference cells' (occupied << 32 | free) summed-area table (the moving side's bound)
         # (rotation only: no box of translations, never read)
-        box = self.ref[rlo:rhi + 1, clo:chi + 1] if self.k > 0 and not self.empty_ref else np.zeros((1, 1), np.int8)
-        self.ref_sat = _sat((box == OCCUPIED_S).astype(np.int64) << 32 | (box == FREE_S).astype(np.int64))
+        self.ref_sat = class_sat(self.ref, rlo, rhi + 1, clo, chi + 1) if self.k > 0 and not self.empty_ref \
+            else np.zeros((2, 2), np.int64)
         # per translation, how many lattice rows (columns) read each occupied cell: exact weights of small
         # boxes when the ROI is not a plain block (Lemma 3)
         self.wr0 = np.ascontiguousarray((self.ihi - self.ilo)[:, self.qr - rlo].astype(np.int8))
@@ -169,24 +248,7 @@ class Prepared:
         for level in range(levels):
             s = 1 << level
             if self.qr.size:
-                br, bc = self.qr // s, self.qc // s
-                key = br * (1 << 31) + bc
-                uk, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
-                nb = uk.size
-                wr = np.zeros(nb, np.int64)
-                wc = np.zeros(nb, np.int64)
-                np.maximum.at(wr, inv, self._wr[self.qr - rlo])
-                np.maximum.at(wc, inv, self._wc[self.qc - clo])
-                # rows / columns of the whole block (not only its occupied cells) must never be skipped
-                bad = np.zeros(nb, np.bool_)
-                r0, c0 = (uk >> 31) * s, (uk & ((1 << 31) - 1)) * s
-                for d in range(s):
-                    rr, cc = r0 + d - rlo, c0 + d - clo
-                    ok_r = (rr >= 0) & (rr < self._skip_r.size)
-                    ok_c = (cc >= 0) & (cc < self._skip_c.size)
-                    bad |= ok_r & self._skip_r[np.clip(rr, 0, self._skip_r.size - 1)]
-                    bad |= ok_c & self._skip_c[np.clip(cc, 0, self._skip_c.size - 1)]
-                part = np.stack([r0, c0, cnt, cnt * wr * wc, (~bad).astype(np.int64)], axis=1)
+                part = _pool_level(self.qr, self.qc, s, self._wr, self._wc, self._skip_r, self._skip_c, rlo, clo)
             else:
                 part = np.zeros((0, 5), np.int64)
             parts.append(part.astype(np.int64))

@@ -15,6 +15,11 @@ over a second network of the same latency, jitter and loss (its own random strea
 not change the maps' deliveries); after the tick's merge cycles each robot weighs what arrived
 (:meth:`merger.TeamMerger.consider`), and an adopted hypothesis is judged like an accepted cycle.
 
+The tick's merge cycles run on a thread of their own while the next tick's robots move, scan and map
+(the world never reads a merge; a cycle reads only maps already published), and are judged and told to
+the observers before that tick's events: the same events in the same order as one thread would give
+(with ``merger.share_hypotheses``, or ``MERGER_THREADS=1``, the cycles run in the tick itself).
+
 Randomness: one ``numpy.random.SeedSequence(seed)`` is split into independent streams per purpose
 and robot (laser noise, SLAM drift, network, center error, publish phases), so the same scenario and
 seed give the same run, and changing e.g. the network does not change the laser noise.
@@ -26,6 +31,7 @@ import math
 import signal
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -34,6 +40,7 @@ import numpy as np
 from merger.team.memo import Memo
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams
+from merger.team.pool import threads as merger_threads
 
 from .config.scenario import Scenario, scenario_to_dict
 from .events import MergeCycle, Observer, RobotTick
@@ -135,6 +142,10 @@ class Simulation:
         self.hypothesis_network = Network(sc.network, np.random.default_rng(ss.spawn(1)[0]))
         self.share = bool(sc.merger.share_hypotheses)
         self._consensus_told = False
+        # the last tick's merge cycles, running while this tick's robots scan: (t, [(robot, trigger)], future)
+        self._pending = None
+        self._cycles_thread: ThreadPoolExecutor | None = None
+        self._stop = lambda: False  # Ctrl-C pressed (set by run)
         err_rng = np.random.default_rng(next(streams))
         phase_rng = np.random.default_rng(next(streams))
         self.world = World.from_scenario(sc)
@@ -186,7 +197,9 @@ class Simulation:
     def pose(self, robot: Robot, t: float):
         return robot.traj.pose_at(t) if self.scenario.robots.motion == "online" else robot.traj.start_pose()
 
-    def step(self, k: int, t: float) -> None:
+    def step(self, k: int, t: float) -> bool:
+        """One tick; False when Ctrl-C came while the last tick's cycles were told (the run then ends
+        with that tick: nothing of this one reaches the observers)."""
         sc = self.scenario
         poses = {n: self.pose(r, t) for n, r in self.robots.items()}
         for n, p in poses.items():
@@ -197,13 +210,34 @@ class Simulation:
             est = r.slam.update(poses[n], s)
             ticks.append(RobotTick(n, tuple(poses[n]), tuple(est), self._est_in_world(n, est),
                                    self.arc_deg(n, t), s))
+        self._finish_merges()  # the last tick's cycles (they ran while these robots scanned)
+        if self._stop():
+            return False
         self._emit("on_tick", t, k, ticks)
         self._exchange(t)
+        jobs = []
         for r in self.robots.values():
             if r.inbox_new:
-                self._merge(r, t)
+                trigger = ",".join(dict.fromkeys(r.inbox_new))
+                r.inbox_new.clear()
+                if r.merger.ready():
+                    jobs.append((r, trigger))
+        if jobs and self._cycles_thread is not None:
+            self._pending = (t, jobs, self._cycles_thread.submit(lambda: [r.merger.cycle(now=t) for r, _ in jobs]))
+        else:
+            for r, trigger in jobs:
+                self._judge(r, t, trigger, r.merger.cycle(now=t))
         if self.share:
             self._weigh_hypotheses(t)
+        return True
+
+    def _finish_merges(self) -> None:
+        """Judge the cycles started in the last tick (in robot order) and tell the observers."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            t, jobs, future = pending
+            for (r, trigger), res in zip(jobs, future.result(), strict=True):
+                self._judge(r, t, trigger, res)
 
     def _est_in_world(self, name: str, est) -> tuple[float, float, float]:
         s = self.start_poses[name]
@@ -232,13 +266,6 @@ class Simulation:
                 if fresh:
                     r.inbox_new.append(m.sender)
                 self._emit("on_map_received", t, n, m.sender, m.sent_s, not fresh)
-
-    def _merge(self, r: Robot, t: float) -> None:
-        trigger = ",".join(dict.fromkeys(r.inbox_new))
-        r.inbox_new.clear()
-        if not r.merger.ready():
-            return
-        self._judge(r, t, trigger, r.merger.cycle(now=t))
 
     def _weigh_hypotheses(self, t: float) -> None:
         for n, r in self.robots.items():
@@ -293,18 +320,28 @@ class Simulation:
         n_steps = int(math.floor(sc.duration_s / sc.dt_s + 1e-9))
         self._emit("on_start", self)
         t0 = time.perf_counter()
+        if not self.share and merger_threads() >= 2:
+            self._cycles_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="merge-cycles")
         try:
             with _sigint_at_tick_boundary() as stop:
+                self._stop = stop
                 for k in range(n_steps + 1):
                     t = k * sc.dt_s
-                    self.step(k, t)
+                    if not self.step(k, t):
+                        raise KeyboardInterrupt
                     self.result.sim_s = t
                     if stop():
                         raise KeyboardInterrupt
+                self._finish_merges()
         except KeyboardInterrupt:
+            self._finish_merges()  # the interrupted tick's cycles: every observer sees the whole tick
             self.result.interrupted = True
             self._emit("on_event", self.result.sim_s, "warn", "run interrupted (Ctrl-C)")
         finally:
+            self._stop = lambda: False
+            if self._cycles_thread is not None:
+                self._cycles_thread.shutdown(wait=True)
+                self._cycles_thread = None
             self.result.wall_s = time.perf_counter() - t0
         self._emit("on_end", self.result)
         return self.result

@@ -241,3 +241,32 @@ def test_sharing_searches_between_robots_changes_no_result(name, sets):
     assert len(ca) == len(cb) > 5 and ca == cb
     assert any(charged > 0 for _, charged in costs_a)
     assert all(charged == 0.0 for _, charged in costs_b)
+
+
+def test_cycles_beside_the_next_tick_tell_the_same_events_in_the_same_order_as_one_thread(monkeypatch):
+    """A tick's merge cycles run while the next tick's robots scan; observers still see every event in
+    the order a single thread gives (``MERGER_THREADS=1`` runs the cycles in their own tick), with the
+    same results."""
+    def events(threads):
+        monkeypatch.setenv("MERGER_THREADS", threads)
+        seen = []
+
+        class Log(Observer):
+            def on_tick(self, t, k, ticks):
+                seen.append(("tick", k, tuple((r.name, r.est_pose) for r in ticks)))
+
+            def on_map_received(self, t, recipient, sender, sent_s, stale=False):
+                seen.append(("received", t, recipient, sender, sent_s, stale))
+
+            def on_merge_cycle(self, c):
+                seen.append(("cycle", c.t, c.robot, c.trigger, c.result.accepted, c.correct,
+                             tuple(sorted(c.result.top.theta_deg.items())),
+                             tuple(sorted(c.angle_error_deg.items())), c.first_correct))
+
+        res = Simulation(scene("hall4", "duration_s=6", "merger.window_m=0.5", "merger.strategy=auto",
+                               "center_error=0.15"), [Log()]).run()
+        return seen, res.false_merges, {n: r.first_merge_s for n, r in res.robots.items()}
+
+    one, two = events("1"), events("2")
+    assert sum(e[0] == "cycle" for e in one[0]) > 10
+    assert one == two

@@ -376,15 +376,14 @@ def _wide(problem):
 
 
 def _ring(problem):
-    """The guard's wider problem, its window, its searcher and the translations of its ring outside the
-    problem's window (in the translation order); None without a window or a wider one."""
+    """The guard's wider problem, its window (cells) and its searcher; None without a window or a wider
+    one. The ring: the wider window's translations outside the problem's window (:func:`_ring_mask`)."""
     k = problem.window_cells
     big = _wide(problem)
     kb = big.window_cells
     if k == 0 or kb <= k:
         return None
-    ring = [(a, b) for (a, b) in translation_offsets(kb) if max(abs(a), abs(b)) > k]
-    return big, kb, searcher_for(big), ring
+    return big, kb, searcher_for(big)
 
 
 def _apart(a, b) -> bool:
@@ -405,20 +404,31 @@ def beyond_window(problem, best_value: float, answer, budget: int = BEYOND_BUDGE
     ringed = _ring(problem)
     if ringed is None:
         return None
-    big, kb, s, ring = ringed
+    big, kb, s = ringed
     side = 2 * kb + 1
     th_ans, (a_ans, b_ans) = answer
-    excl_a = np.array([not _apart((float(t), (0, 0)), (th_ans, (0, 0))) for t in COARSE], np.bool_)
-    excl_t = np.zeros(side * side, np.bool_)
-    for a, b in ring:
-        if not _apart((th_ans, (a, b)), (th_ans, (a_ans, b_ans))):
-            excl_t[(b + kb) * side + (a + kb)] = True
+    # the elements not apart from the answer (_apart): angles within BEYOND_APART_STEPS degrees of it ×
+    # translations within BEYOND_APART_STEPS cells of it (integer offsets: a² + b² ≤ 2)
+    excl_a = np.abs(angle_diff_deg(COARSE, th_ans)) <= BEYOND_APART_STEPS
+    tmask = _ring_mask(problem.window_cells, kb)
+    bb, aa = np.divmod(np.arange(side * side), side)
+    excl_t = tmask & ((aa - kb - a_ans) ** 2 + (bb - kb - b_ans) ** 2 <= BEYOND_APART_STEPS ** 2)
     inc = np.array([best_value, -1, -1, -1, 0, 0, 0, 0, 0], np.float64)  # strictly above best_value
-    inc, _ = s.run(COARSE, mode=1, tmask=s.translation_mask(ring), inc=inc, excl=(excl_a, excl_t), budget=budget,
+    inc, _ = s.run(COARSE, mode=1, tmask=tmask, inc=inc, excl=(excl_a, excl_t), budget=budget,
                    init=_ring_regions(kb))
     if inc[3] < 0:
         return None
     return float(inc[3]), big.offset_m(int(inc[4]), int(inc[5])), float(inc[0])
+
+
+@lru_cache(maxsize=16)
+def _ring_mask(k: int, kb: int) -> np.ndarray:
+    """The ring's translations (beyond ±k cells, within ±kb) as a mask over b·(2kb+1) + a (read-only)."""
+    side = 2 * kb + 1
+    bb, aa = np.divmod(np.arange(side * side), side)
+    out = np.maximum(np.abs(aa - kb), np.abs(bb - kb)) > k
+    out.flags.writeable = False
+    return out
 
 
 @lru_cache(maxsize=16)
@@ -467,7 +477,9 @@ def reference_beyond(problem, best_value: float, answer):
     ringed = _ring(problem)
     if ringed is None:
         return None
-    big, _, s, ring = ringed
+    big, kb, s = ringed
+    k = problem.window_cells
+    ring = [(a, b) for (a, b) in translation_offsets(kb) if max(abs(a), abs(b)) > k]
     out = None
     for th in range(360):
         vals = s.values(float(th), ring)

@@ -17,65 +17,44 @@ from collections import OrderedDict
 MAX_ENTRIES = 8
 _LOCK = threading.Lock()
 _SEARCHERS: OrderedDict = OrderedDict()
+MOVING_ENTRIES = 16
+_MOVING: OrderedDict = OrderedDict()
+GEOMETRY_ENTRIES = 32
+_GEOMETRY: OrderedDict = OrderedDict()
+
+
+def _kept(store: OrderedDict, key, owner, factory, limit: int):
+    """``store[key]``'s value if it was made for ``owner`` (the object itself is held with the entry, so
+    an id is never mistaken for another's), else ``factory()`` kept there; the last ``limit`` entries."""
+    with _LOCK:
+        hit = store.get(key)
+        if hit is not None and hit[0] is owner:
+            store.move_to_end(key)
+            return hit[1]
+    value = factory()
+    with _LOCK:
+        store[key] = (owner, value)
+        while len(store) > limit:
+            store.popitem(last=False)
+    return value
 
 
 def searcher(problem, k, factory):
     """The searcher of ``problem`` (window ``k`` cells; None: the problem's own), built by ``factory``."""
-    key = (id(problem), k)
-    with _LOCK:
-        hit = _SEARCHERS.get(key)
-        if hit is not None and hit[0] is problem:
-            _SEARCHERS.move_to_end(key)
-            return hit[1]
-    s = factory(problem, k)
-    with _LOCK:
-        _SEARCHERS[key] = (problem, s)
-        while len(_SEARCHERS) > MAX_ENTRIES:
-            _SEARCHERS.popitem(last=False)
-    return s
-
-
-MOVING_ENTRIES = 16
-_MOVING: OrderedDict = OrderedDict()
+    return _kept(_SEARCHERS, (id(problem), k), problem, lambda: factory(problem, k), MAX_ENTRIES)
 
 
 def moving_side(grid, key: tuple, factory):
     """Arrays that depend on the moving map alone (and ``key``: its center, the ROI), kept for the
-    last ``MOVING_ENTRIES`` maps: a map is the moving map of several searches of a merge cycle. The grid
-    object itself is held with its entry, so an id is never mistaken for another map's."""
-    k = (id(grid),) + key
-    with _LOCK:
-        hit = _MOVING.get(k)
-        if hit is not None and hit[0] is grid:
-            _MOVING.move_to_end(k)
-            return hit[1]
-    value = factory()
-    with _LOCK:
-        _MOVING[k] = (grid, value)
-        while len(_MOVING) > MOVING_ENTRIES:
-            _MOVING.popitem(last=False)
-    return value
-
-
-GEOMETRY_ENTRIES = 32
-_GEOMETRY: OrderedDict = OrderedDict()
+    last ``MOVING_ENTRIES`` maps: a map is the moving map of several searches of a merge cycle."""
+    return _kept(_MOVING, (id(grid),) + key, grid, factory, MOVING_ENTRIES)
 
 
 def geometry(key: tuple, factory):
     """Arrays that depend on a reference map's geometry alone (``key``: its origin, resolution, size, the
     center, the ROI and the window), kept for the last ``GEOMETRY_ENTRIES`` geometries: a robot's map
     keeps its frame and its center while it grows, so every version of it is prepared from the same."""
-    with _LOCK:
-        hit = _GEOMETRY.get(key)
-        if hit is not None:
-            _GEOMETRY.move_to_end(key)
-            return hit
-    value = factory()
-    with _LOCK:
-        _GEOMETRY[key] = value
-        while len(_GEOMETRY) > GEOMETRY_ENTRIES:
-            _GEOMETRY.popitem(last=False)
-    return value
+    return _kept(_GEOMETRY, key, None, factory, GEOMETRY_ENTRIES)
 
 
 # the fast search's frontier per problem object, for as long as the problem lives (a runner-up search of

@@ -408,7 +408,7 @@ def beyond_window(problem, best_value: float, answer, budget: int = BEYOND_BUDGE
     side = 2 * kb + 1
     th_ans, (a_ans, b_ans) = answer
     # the elements not apart from the answer (_apart): angles within BEYOND_APART_STEPS degrees of it ×
-    # translations within BEYOND_APART_STEPS cells of it (integer offsets: a² + b² ≤ 2)
+    # translations within BEYOND_APART_STEPS cells of it
     excl_a = np.abs(angle_diff_deg(COARSE, th_ans)) <= BEYOND_APART_STEPS
     tmask = _ring_mask(problem.window_cells, kb)
     bb, aa = np.divmod(np.arange(side * side), side)

@@ -38,7 +38,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from merger.jit import njit
 
 CSM_DELTA_WEIGHT = 0.1  # Cartographer's translation_/rotation_delta_cost_weight defaults (per m, per rad)
 GN_ITERATIONS = 10

@@ -26,8 +26,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .lattice import moving_states, state_at
 from .measures import BIRK_CARPIN, NCC, upper_of, value_of
 

@@ -22,9 +22,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from ..grid import UNKNOWN_S
+from ..jit import njit
 
 
 def rotation_entries(theta_deg: float) -> tuple[float, float, float, float]:

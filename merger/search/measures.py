@@ -25,7 +25,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from ..jit import njit
 
 SIMILARITY, BIRK_CARPIN, NCC = 0, 1, 2
 

@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ..jit import njit
 
 PAD = 1e-9  # metres and degrees: float rounding of the lookups (~1e-15 relative) is far below it
 

@@ -22,9 +22,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
 
 from ..grid import FREE_S, OCCUPIED_S
+from ..jit import njit
 from . import caches
 from .kernels import LEVELS
 from .lattice import lattice_offsets, ref_axes_numpy

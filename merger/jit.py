@@ -1,0 +1,90 @@
+"""The one way our kernels are compiled: numba's ``njit`` with an on-disk cache that can neither break
+nor stop a run.
+
+``@njit(cache=True, nogil=True)`` from here is numba's ``njit`` (no fastmath) whose cache is guarded:
+
+* a cache file that cannot be read back — an ``.nbc`` cut short by a full disk or a killed first
+  compile, a garbled ``.nbi`` index (numba raises ``UnpicklingError`` on every later call, and a run
+  never recovers until the folder is deleted) — is discarded: the function's index and data files are
+  removed, the kernel is compiled again in memory and its cache rewritten;
+* a cache that cannot be written (a full disk, a read-only folder) costs only the next process's
+  compile: the compiled kernel is used;
+* no place to cache at all (numba's locators: ``NUMBA_CACHE_DIR``, then the source's ``__pycache__``,
+  then the user's cache folder; none writable raises ``cannot cache function …: no locator available``
+  at import) compiles in memory.
+
+Each case is reported once per process as one line on the ``merger.jit`` logger (without logging
+configured, Python prints warnings to stderr as the bare line). Answers never depend on the cache: a
+cached kernel is the same machine code as a freshly compiled one. Kernel modules import ``njit`` from
+here, never from numba (``tests/merger/test_jit.py`` checks every kernel of merger and circsim).
+"""
+
+from __future__ import annotations
+
+import glob
+import logging
+import os
+
+import numba
+from numba.core.caching import FunctionCache
+
+log = logging.getLogger(__name__)
+_told: set[str] = set()  # the kinds of warning already given in this process
+
+
+def warn_once(kind: str, message: str) -> None:
+    """Log ``message`` as a warning unless a warning of this ``kind`` was already given here."""
+    if kind not in _told:
+        _told.add(kind)
+        log.warning("warning: %s", message)
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return type(exc).__name__ + (f": {text[0]}" if text else "")
+
+
+class GuardedCache(FunctionCache):
+    """numba's per-function cache, whose unreadable files are discarded and whose write errors are not
+    fatal (a cache is an optimisation: a failure of it only costs a compile)."""
+
+    def load_overload(self, sig, target_context):
+        try:
+            return super().load_overload(sig, target_context)
+        except Exception as exc:  # any failure to read back is a bad file: pickle, EOF, a bad payload
+            self._discard()
+            warn_once("corrupt", f"numba's compile cache in {self.cache_path} could not be read "
+                      f"({_reason(exc)}): discarded, the kernels are compiled again (about 30 s) and re-cached")
+            return None
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except Exception as exc:  # a full disk, a read-only or vanished folder, an index garbled meanwhile
+            warn_once("unsaved", f"numba's compile cache in {self.cache_path} could not be written "
+                      f"({_reason(exc)}): the kernels run compiled in memory, the next run compiles them again")
+
+    def _discard(self) -> None:
+        base = os.path.join(self.cache_path, glob.escape(self._impl.filename_base))
+        for path in glob.glob(base + ".nbi") + glob.glob(base + ".*.nbc"):
+            try:
+                os.unlink(path)
+            except OSError:  # already gone (another process discarded it) or read-only: saving will say
+                pass
+
+
+def njit(*, cache: bool = True, nogil: bool = True):
+    """``numba.njit(cache=cache, nogil=nogil)`` with the cache guarded (module docstring)."""
+
+    def wrap(func):
+        disp = numba.njit(nogil=nogil)(func)
+        if cache:
+            try:
+                disp._cache = GuardedCache(func)  # what numba's Dispatcher.enable_caching() does
+            except RuntimeError as exc:  # numba: "cannot cache function …: no locator available …"
+                warn_once("nowhere", f"numba finds no writable folder to cache compiled kernels in ({exc}): "
+                          "they are compiled in memory on every run (about 30 s); set NUMBA_CACHE_DIR to a "
+                          "writable folder")
+        return disp
+
+    return wrap

@@ -241,9 +241,9 @@ def ensure_output_dir(path, option: str) -> None:
     path = Path(path)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+        fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=path)  # unique: other processes check too
+        os.close(fd)
+        os.unlink(probe)
     except OSError as e:
         raise MapFileError(f"{option} {path}: cannot write there ({e.strerror or e})") from None
 

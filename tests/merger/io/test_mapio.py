@@ -166,3 +166,27 @@ def test_write_files_all_or_none(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]
     assert write_files({tmp_path / "a.yaml": b"a"}) == [tmp_path / "a.yaml"]
     assert (tmp_path / "a.yaml").read_bytes() == b"a"
+
+
+def _check_often(folder: str, n: int) -> int:
+    from merger.io.mapio import MapFileError, ensure_output_dir
+
+    failed = 0
+    for _ in range(n):
+        try:
+            ensure_output_dir(folder, "--out")
+        except MapFileError:
+            failed += 1
+    return failed
+
+
+def test_two_processes_checking_one_output_folder_both_pass(tmp_path):
+    """ensure_output_dir created and deleted a fixed DIR/.write-test: two processes checking the same folder
+    deleted each other's probe (9,199 of 40,000 calls failed, `cannot write there (No such file or
+    directory)`). The probe now has a unique name, and none is left behind."""
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        failed = pool.starmap(_check_often, [(str(tmp_path), 3000)] * 2)
+    assert failed == [0, 0]
+    assert list(tmp_path.iterdir()) == []

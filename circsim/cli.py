@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write every robot's last published map as ROS map_server files (DIR/<robot>.yaml/.pgm) "
                         "and DIR/centers.yaml: each map's center (given and true), the robots' start poses, the "
                         "ground truth onto the first robot's map and the `merger merge` command that merges them")
+    r.add_argument("--bag", type=Path, metavar="OUT",
+                   help="write the run as a ROS 2 bag (folder OUT, MCAP): every robot's map, scans, odometry and "
+                        "tf, with the ground truth and the bench's merges beside (OUT/circsim_truth.yaml, "
+                        "OUT/circsim_merges.csv; `circsim score`); needs pip install -e \".[ros]\"")
     r.add_argument("--quiet", action="store_true", help="no progress bar (shown on a terminal only)")
     sc = sub.add_parser("scenarios", help="list the bundled scenarios (--show NAME: one in full)")
     sc.add_argument("--show", metavar="SCENARIO", help="print a scenario (bundled name or file) with every key "
@@ -161,6 +165,10 @@ def cmd_run(args) -> int:
     if json_out:
         _writable(json_out, "metrics JSON")
     check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps)
+    if args.bag:
+        from .record.bag import check_bag_output
+
+        check_bag_output(args.bag)
     if args.save_maps:
         ensure_output_dir(args.save_maps, "--save-maps")
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
@@ -169,6 +177,12 @@ def cmd_run(args) -> int:
     saver = MapSaver() if args.save_maps else None
     if saver:
         observers.append(saver)
+    bag = None
+    if args.bag:
+        from .record.bag import BagRecorder
+
+        bag = BagRecorder(args.bag)
+        observers.append(bag)
     recorder = None
     if rrd or args.spawn:
         from .record.rerun import RerunRecorder
@@ -190,6 +204,8 @@ def cmd_run(args) -> int:
         res.outputs["rrd"] = str(rrd)
     if json_out:
         res.outputs["json"] = str(json_out)
+    if bag is not None and not bag.write_error:
+        res.outputs["bag"] = str(args.bag)
     if saver:
         res.outputs["maps"] = str(args.save_maps)
     print(summary(res))  # first: whatever happens to the files, the figures are on screen
@@ -199,6 +215,12 @@ def cmd_run(args) -> int:
         failed = True
     elif rrd:
         print(f"recording: {rrd}   (view it: circsim view {rrd})")
+    if bag is not None:
+        if bag.write_error:
+            print(f"circsim: error: {bag.write_error}; the run's figures are above", file=sys.stderr)
+            failed = True
+        else:
+            print(f"bag:       {args.bag}   (score a merger on it: circsim score {args.bag} --transforms FILE)")
     if saver:
         try:
             files = saver.files(args.save_maps)

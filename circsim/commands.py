@@ -44,11 +44,10 @@ def load_with_overrides(arg: str, seed: int | None, sets: list[str]):
     """The scenario ``arg`` (file or bundled name) with ``--set`` assignments and ``--seed`` applied."""
     from .config.scenario import load_scenario
 
-    sc = load_scenario(resolve_scenario(arg))
     assignments = list(sets or [])
     if seed is not None:
         assignments.append(f"seed={seed}")
-    return sc.with_overrides(assignments) if assignments else sc
+    return load_scenario(resolve_scenario(arg), assignments)  # overrides first, then one validation
 
 
 def add_scenario_args(p: argparse.ArgumentParser) -> None:

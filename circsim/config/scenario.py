@@ -170,27 +170,34 @@ class Scenario:
 
     def with_overrides(self, assignments) -> Scenario:
         """A copy with ``key.path=value`` assignments applied (values parsed as YAML) and re-validated."""
-        data = copy.deepcopy(self.raw)
-        pairs = []
-        for a in assignments:
-            key, sep, text = a.partition("=")
-            key = key.strip()
-            if not sep or not key:
-                raise ScenarioError(f"{self.source}: --set {a!r}: expected key.path=value")
-            try:
-                value = load_yaml(text)
-            except (yaml.YAMLError, ValueError, TypeError, RecursionError):
-                raise ScenarioError(f"{self.source}: --set {a}: value is not valid YAML") from None
-            key = resolve_alias(key, value)
-            _assign(data, key.split("."), value, f"{self.source}: --set {a}")
-            pairs.append((key, a))
+        return _overridden(self.raw, assignments, self.source)
+
+
+def _overridden(raw: dict, assignments, source: str) -> Scenario:
+    """The scenario of the data ``raw`` with ``key.path=value`` assignments applied, then validated once
+    (so an override can make a file valid: a circle too big for its ``slam.size_m`` and ``--set
+    slam.size_m=20``); an error names the assignments it concerns."""
+    data = copy.deepcopy(raw)
+    pairs = []
+    for a in assignments:
+        key, sep, text = a.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ScenarioError(f"{source}: --set {a!r}: expected key.path=value")
         try:
-            return _build(data, self.source)
-        except Invalid as e:
-            culprits = [a for k, a in pairs
-                        if e.path == k or e.path.startswith(k + ".") or k.startswith(e.path + ".")]
-            label = " ".join(f"--set {a}" for a in (culprits or [a for _, a in pairs]))
-            raise ScenarioError(f"{self.source} ({label}): {e.path}: {e.message}") from None
+            value = load_yaml(text)
+        except (yaml.YAMLError, ValueError, TypeError, RecursionError):
+            raise ScenarioError(f"{source}: --set {a}: value is not valid YAML") from None
+        key = resolve_alias(key, value)
+        _assign(data, key.split("."), value, f"{source}: --set {a}")
+        pairs.append((key, a))
+    try:
+        return _build(data, source)
+    except Invalid as e:
+        culprits = [a for k, a in pairs
+                    if e.path == k or e.path.startswith(k + ".") or k.startswith(e.path + ".")]
+        label = " ".join(f"--set {a}" for a in (culprits or [a for _, a in pairs]))
+        raise ScenarioError(f"{source} ({label}): {e.path}: {e.message}") from None
 
 
 # DESIGN.md and the issues spell some keys without their unit; the scenario keys carry it. `--set` and
@@ -208,8 +215,9 @@ def resolve_alias(key: str, value=None) -> str:
     return key
 
 
-def load_scenario(path) -> Scenario:
-    """Read and validate a scenario file."""
+def load_scenario(path, overrides=()) -> Scenario:
+    """Read and validate a scenario file; ``overrides`` (``key.path=value``, as ``--set``) are applied to
+    the file's data before it is validated, once."""
     path = Path(path)
     label = path.name
     try:
@@ -231,6 +239,8 @@ def load_scenario(path) -> Scenario:
     if data is None:  # an empty or comment-only file would silently run the default scene
         raise ScenarioError(f"{label}: empty scenario (expected a mapping of scenario sections: "
                             f"{', '.join(TOP_KEYS)})")
+    if overrides and isinstance(data, dict):
+        return _overridden({"name": path.stem, **data}, list(overrides), label)
     return scenario_from_dict(data, source=label, default_name=path.stem)
 
 

@@ -106,9 +106,70 @@ world:
 
 
 def test_room_from_wall_segments(tmp_path):
-    sc = load_scenario(write(tmp_path, "world: {room: {walls: [[0, 0, 4, 0], [4, 0, 4, 3]]}}\n"))
-    assert sc.world.room.wall_segments() == ((0.0, 0.0, 4.0, 0.0), (4.0, 0.0, 4.0, 3.0))
+    sc = load_scenario(write(tmp_path, "world: {room: {walls: [[-3, -3, 4, -3], [4, -3, 4, 3]]}}\n"))
+    assert sc.world.room.wall_segments() == ((-3.0, -3.0, 4.0, -3.0), (4.0, -3.0, 4.0, 3.0))
     assert scenario_from_dict(scenario_to_dict(sc)) == sc
+
+
+# an L-shaped room: the square [-4, 4]² without its upper right quarter [1, 4] x [1, 4]
+L_WALLS = "[[-4, -4, 4, -4], [4, -4, 4, 1], [4, 1, 1, 1], [1, 1, 1, 4], [1, 4, -4, 4], [-4, 4, -4, -4]]"
+
+
+def wall_room(world_extra: str = "", robots: str = "{radius_m: 1.5}", center: str = "[-1.5, -1.5]") -> str:
+    return f"world: {{center: {center}, room: {{walls: {L_WALLS}}}{world_extra}}}\nrobots: {robots}\n"
+
+
+def test_wall_rooms_are_checked_like_rectangles(tmp_path):
+    """Issue 36 item 6 / 37 item 4: a room of walls had no checks — a circle crossing the L's inner walls,
+    a pillar outside the L, a wall through a robot's start and robots starting outside the room ran."""
+    sc = load_scenario(write(tmp_path, wall_room()))  # the circle in the L's lower-left square: fine
+    assert len(sc.world.room.walls) == 6
+    cases = [
+        (wall_room(robots="{radius_m: 2.3}", center="[-0.5, -0.5]"),  # clear of the outer walls by 1.2 m
+         "world.room.walls[2]: expected clear of robot"),
+        (wall_room(", pillars: [{center: [3, 3], radius: 0.2}]"),
+         "world.pillars[0]: expected inside the room (the region the walls enclose"),
+        (wall_room(", objects: [{type: box, center: [2.5, 2.5], size_m: [0.4, 0.4]}]"),
+         "world.objects[0]: expected inside the room"),
+        # a wall through Lyon's start (-1.5, 0.0), inside the room
+        (f"world: {{center: [-1.5, -1.5], room: {{walls: {L_WALLS[:-1]}, [-2, 0, -1, 0]]}}}}\n"
+         "robots: {radius_m: 1.5}\n", "world.room.walls[6]: expected clear of robot Lyon's path"),
+        # the walls close a small box about the center; the circle runs outside it, crossing no wall
+        ("world: {center: [0, 0], room: {walls: [[-1, -1, 1, -1], [1, -1, 1, 1], [1, 1, -1, 1], [-1, 1, -1, -1]]}}\n"
+         "robots: {radius_m: 2.0}\n",
+         "robots.radius_m: expected a circle about world.center that stays inside the room the walls enclose"),
+    ]
+    for text, needle in cases:
+        with pytest.raises(ScenarioError) as e:
+            load_scenario(write(tmp_path, text))
+        assert needle in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+def test_walls_that_do_not_close_check_only_the_path(tmp_path):
+    """An open scene (two walls) has no inside: a pillar anywhere off the path is accepted, a wall across
+    the circle is not."""
+    ok = write(tmp_path, "world: {center: [0, 0], room: {walls: [[-3, -3, 3, -3], [3, -3, 3, 3]]}, "
+                         "pillars: [{center: [9, 9], radius: 0.2}]}\nrobots: {radius_m: 1.5}\n")
+    assert load_scenario(ok).world.pillars[0].center == (9.0, 9.0)
+    cross = write(tmp_path, "world: {center: [0, 0], room: {walls: [[-3, 0, 3, 0]]}}\nrobots: {radius_m: 1.5}\n")
+    with pytest.raises(ScenarioError, match=r"world.room.walls\[0\]: expected clear of robot"):
+        load_scenario(cross)
+
+
+def test_overrides_are_applied_before_the_file_is_validated(tmp_path):
+    """Issue 36 item 5: a file whose circle needs a larger slam.size_m could not be fixed by --set
+    slam.size_m=20 (the file was validated before the override: still 'got 16.0')."""
+    from circsim.commands import load_with_overrides
+
+    path = write(tmp_path, "world: {room: {size_m: [12, 12]}}\nrobots: {radius_m: 4.5}\nslam: {size_m: 16}\n")
+    with pytest.raises(ScenarioError, match="slam.size_m: expected a number > 4 \\* robots.radius_m .18.*got 16.0"):
+        load_scenario(path)
+    sc = load_with_overrides(str(path), None, ["slam.size_m=20"])
+    assert sc.slam.size_m == 20.0 and sc.robots.radius_m == 4.5
+    assert load_scenario(path, ["slam.size_m=20", "seed=3"]).seed == 3
+    with pytest.raises(ScenarioError) as e:  # an override that does not fix it is named
+        load_with_overrides(str(path), None, ["slam.size_m=17"])
+    assert "(--set slam.size_m=17): slam.size_m: expected a number > 4 * robots.radius_m (18)" in str(e.value)
 
 
 @pytest.mark.parametrize("text, expected", [

@@ -290,4 +290,48 @@ def _sweep(args, base, axes, tasks) -> int:
     return 0
 
 
-REGISTER: list = [register_offline, register_sweep]
+# --- circsim score ----------------------------------------------------------------------------------
+def register_score(sub) -> None:
+    p = sub.add_parser("score", help="judge a merger's answers on a bag of `circsim run --bag` (its truth, "
+                                     "the run's metrics)",
+                       description="Judge an external merger against a run's ground truth with the run's "
+                                   "metrics: first correct merge per robot, false merges, final errors "
+                                   "(docs/ros.md).")
+    p.add_argument("run", type=Path, metavar="RUN", help="the bag folder written by `circsim run --bag RUN`")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--transforms", type=Path, metavar="FILE",
+                   help="CSV (or YAML) rows t_s,robot,map,yaw_deg,x_m,y_m[,estimate]: the pose of map's frame in "
+                        "robot's map frame at t_s (RUN/circsim_merges.csv: the bench's own merges)")
+    g.add_argument("--merged-bag", type=Path, metavar="BAG",
+                   help="a bag with the merger's merged nav_msgs/OccupancyGrid (--topic): each robot's map is "
+                        "located in it")
+    p.add_argument("--topic", default="/map", help="the merged map topic in --merged-bag (default /map)")
+    p.add_argument("--every", type=float, default=5.0, metavar="S",
+                   help="--merged-bag: judge at most one merged map per S simulated seconds (default 5)")
+    p.add_argument("--json", type=Path, metavar="OUT.json", help="write the scores as JSON")
+    p.set_defaults(func=cmd_score)
+
+
+def cmd_score(args) -> int:
+    from .. import score as scoring
+
+    if args.every <= 0:
+        raise ValueError(f"--every: expected a number of seconds > 0, got {args.every:g}")
+    truth = scoring.load_truth(args.run)
+    if args.transforms:
+        estimates = scoring.read_transforms(args.transforms, truth)
+        what = str(args.transforms)
+    else:
+        from ..locate import merged_estimates
+
+        estimates = merged_estimates(truth, args.run, args.merged_bag, args.topic, args.every)
+        what = f"{args.merged_bag} {args.topic}"
+    d = scoring.score(truth, estimates)
+    print(scoring.summary(d, what))
+    if args.json:
+        write_files({args.json: jsonout.dumps(d, indent=2).encode()})
+        print(f"scores:    {args.json}")
+    return 0
+
+
+REGISTER: list = [register_offline, register_sweep, register_score]

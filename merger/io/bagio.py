@@ -118,3 +118,41 @@ def topic_names(topics: list[str]) -> list[str]:
     if len(short) == len(names) and all(short) and len(set(short)) == len(short):
         return short
     return names
+
+
+def read_bag_map_series(path, topics: list[str], *, stamp: str = "header") -> dict[str, list[tuple[float, OccupancyGrid]]]:
+    """Every ``nav_msgs/msg/OccupancyGrid`` of each of ``topics`` in the bag at ``path``, in time order, as
+    ``(seconds, grid)``: the message's header stamp (``stamp="header"``) or the bag's receive time
+    (``stamp="bag"``). Errors as :func:`read_bag_maps`."""
+    AnyReader, typestore = _rosbags()
+    path = Path(path)
+    if not path.exists():
+        raise MapFileError(f"{path}: no such bag")
+    check_bag_files(path)
+    try:
+        reader = AnyReader([path], default_typestore=typestore)
+        reader.open()
+    except Exception as e:
+        raise MapFileError(f"{path}: not a readable ROS bag ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") \
+            from None
+    try:
+        by_topic = {c.topic: c for c in reader.connections}
+        maps_here = sorted(t for t, c in by_topic.items() if c.msgtype == MSGTYPE)
+        for t in topics:
+            if t not in by_topic or by_topic[t].msgtype != MSGTYPE:
+                raise MapFileError(f"{path}: topic {t}: no {MSGTYPE} topic of that name in the bag (its "
+                                   f"{MSGTYPE} topics: {', '.join(maps_here) or 'none'})")
+        out: dict[str, list] = {t: [] for t in topics}
+        for conn, ns, raw in reader.messages(connections=[by_topic[t] for t in topics]):
+            where = f"{path}: topic {conn.topic}"
+            try:
+                msg = reader.deserialize(raw, conn.msgtype)
+            except Exception as e:
+                raise MapFileError(f"{where}: cannot decode a message ({type(e).__name__})") from None
+            s = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec if stamp == "header" else ns * 1e-9
+            out[conn.topic].append((s, grid_from_message(msg, where)))
+        for v in out.values():
+            v.sort(key=lambda e: e[0])
+        return out
+    finally:
+        reader.close()

@@ -30,8 +30,9 @@ CONSTRAINTS = """
 - `slam.size_m` > 4 × `robots.radius_m` (the circle fits in each robot's map, centred on its start);
   `slam.size_m` / `slam.resolution_m` ≤ {cells} cells a side.
 - `merger.window_m` ≤ `merger.roi_m` / 4; `merger.roi_m` ≤ {roi:g} m.
-- `duration_s` / `dt_s` ≤ {ticks} ticks; `dt_s` ≤ `duration_s`; `duration_s` defaults to one tour of the
-  circle (2π·`robots.radius_m` / `robots.speed_mps`, rounded up).
+- `duration_s` / `dt_s` ≤ {ticks} ticks (an hour at 10 Hz; how long that takes: docs/limits.md); `dt_s` ≤
+  `duration_s`; `duration_s` defaults to one tour of the circle (2π·`robots.radius_m` / `robots.speed_mps`,
+  rounded up).
 - `robots.names`: unique, at least two; `robots.start_angles_deg` and `robots.yaw_offsets_deg`: one per robot
   (with names other than three and no start angles: spread evenly from 90°); {body:g} m ≤
   `robots.body_radius_m` < `robots.radius_m`; `robots.speed_mps` ≤ {speed:g}; the robots' bodies do not
@@ -97,7 +98,7 @@ def _sections():
     world = {k: v for k, v in S.WORLD_SCHEMA.items() if k != "room"}
     return [
         ("Top level", [], {"name": S.string, "description": S.string, "seed": S.integer(ge=0),
-                           "duration_s": S.POSITIVE, "dt_s": S.POSITIVE}),
+                           "duration_s": S.POSITIVE, "dt_s": S.DT_S}),
         ("world", ["world"], world),
         ("world.room", ["world", "room"], S.ROOM_SCHEMA),
         *[(f"world.objects[] with type: {kind}", ["world", "objects[]"], check)

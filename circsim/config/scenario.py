@@ -10,7 +10,8 @@ is ten). Beyond types, the loader refuses what would run but could not mean anyt
 a room that does not hold the center, the robots' circle (plus their bodies), a pillar or an object; a
 pillar or object on a robot's start; sizes that would not fit in memory or take hours (a grid above
 :data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
-``merger.limits.MAX_ROI_M``). A room given as ``walls`` (which need not close) has no inside to check.
+``merger.limits.MAX_ROI_M``); a laser, odometry or matcher setting no real robot has (each range names
+its source: a datasheet, a ROS package's default). A room given as ``walls`` (which need not close) has no inside to check.
 
 Here: the loader, the overrides and every section's schema (in one place, so the reference,
 :mod:`circsim.config.reference_doc`, is generated from it); the sections' types are in
@@ -78,7 +79,7 @@ from .validate import (
 )
 
 MAX_GRID_CELLS = 4000  # cells on a side of a robot's grid (200 m at 5 cm): 64 MB of log-odds per robot
-MAX_TICKS = 1_000_000  # duration_s / dt_s: hours of wall time
+MAX_TICKS = 36_000  # duration_s / dt_s: an hour at 10 Hz, minutes of wall time (docs/limits.md)
 MAX_BEAMS = 100_000
 MAX_SPEED_MPS = 2.0  # a robot mapping a room indoors; faster, its scans blur and the laser SLAM is meaningless
 MIN_BODY_RADIUS_M = 0.05  # a robot's body: at least 10 cm across (a 1 µm circle is a typo)
@@ -295,18 +296,40 @@ ROBOTS_SCHEMA = {"names": seq(string, "a list of robot names", 1), "radius_m": P
            "motion": choice("online", "offline"),
            "offline": section(OfflineMotion, {"max_deg": number(gt=0, le=180), "step_deg": POSITIVE}),
            "body_radius_m": POSITIVE}
-LASER_SCHEMA = section(LaserConfig, {"fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
-                               "range_max_m": POSITIVE,
-                               "range_min_m": NON_NEGATIVE, "rate_hz": POSITIVE, "noise_std_m": NON_NEGATIVE,
-                               "dropout": number(ge=0, lt=1), "noise_rel": number(ge=0, lt=1)})
+# Physical ranges: what a real robot's laser and odometry can be (the source is each check's `why`, which
+# the scenario reference prints). Beyond them a run measures nothing real (issue 37: a laser σ of 10⁶ m made
+# 19 false merges in 5 s, alphas of 10⁶ a SLAM error of 331 m, a 1 nm range an empty map) or never ends
+# (a 100 m matcher window, 10⁶ ticks).
+DT_S = number(ge=0.01, le=1, why="one scan per tick: 2D lidars scan at 1–100 Hz (RPLIDAR A1 5.5 Hz, "
+              "URG-04LX 10 Hz, UTM-30LX 40 Hz, SICK LMS1xx 50 Hz)")
+ALPHA = number(ge=0, le=0.2, why="ROS amcl's default odom_alpha 0.2 taken in the corrected form: σ = 0.45·δ "
+                "per scan, odometry already nearly worthless (types.OdometryConfig)")
+LASER_SCHEMA = section(LaserConfig, {
+    "fov_deg": number(gt=0, le=360), "beams": integer(ge=2, le=MAX_BEAMS),
+    "range_max_m": number(ge=1, le=100, why="LDS-01 (TurtleBot3) 3.5 m, URG-04LX 5.6 m, UTM-30LX 30 m, "
+                          "SICK LMS511 80 m, Velodyne VLP-16 100 m"),
+    "range_min_m": number(ge=0, le=1, why="URG-04LX 0.02 m, UTM-30LX 0.1 m, LDS-01 0.12 m, RPLIDAR A1 0.15 m"),
+    "rate_hz": number(ge=1, le=100, why="as dt_s (which sets the scan rate)"),
+    "noise_std_m": number(ge=0, le=0.2, why="URG-04LX ±30 mm; ROS amcl's laser_sigma_hit default 0.2 m, a "
+                          "deliberately wide sensor model"),
+    "dropout": number(ge=0, le=0.5, why="amcl's laser_z_max and laser_z_rand 0.05 each: a laser loses a few "
+                      "per cent of its beams (more on glass and black surfaces)"),
+    "noise_rel": number(ge=0, le=0.1, why="URG-04LX ±3 % of the range beyond 1 m, LDS-01 ±5 % beyond 0.5 m")})
 SLAM_SCHEMA = section(SlamConfig, {
-    "model": choice(*SLAM_MODELS), "resolution_m": POSITIVE, "size_m": POSITIVE,
-    "odometry": section(OdometryConfig, {f"alpha{k}": NON_NEGATIVE for k in range(1, 6)}),
-    "matcher": section(MatcherConfig, {"linear_window_m": NON_NEGATIVE, "angular_window_deg": number(ge=0, le=180),
-                                       "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": POSITIVE,
-                                       "min_log_odds": NON_NEGATIVE,
-                                       "evidence_clamp": POSITIVE}),
-    "drift": section(DriftConfig, {"xy_m_per_m": NON_NEGATIVE, "yaw_deg_per_m": NON_NEGATIVE}),
+    "model": choice(*SLAM_MODELS), "size_m": POSITIVE,
+    "resolution_m": number(ge=0.01, le=0.5, why="gmapping's delta 0.05 m, Cartographer's 0.05 m; 1–50 cm "
+                           "grids are used"),
+    "odometry": section(OdometryConfig, {f"alpha{k}": ALPHA for k in range(1, 6)}),
+    "matcher": section(MatcherConfig, {
+        "linear_window_m": number(ge=0, le=0.5, why="Cartographer's real-time matcher 0.1 m; slam_toolbox's "
+                                  "correlation_search_space_dimension 0.5 m"),
+        "angular_window_deg": number(ge=0, le=45, why="Cartographer's real-time matcher 20°, its constraint "
+                                     "builder 30°"),
+        "max_points": integer(ge=3, le=MAX_BEAMS), "point_sigma_m": POSITIVE, "min_log_odds": NON_NEGATIVE,
+        "evidence_clamp": POSITIVE}),
+    "drift": section(DriftConfig, {
+        "xy_m_per_m": number(ge=0, le=0.1, why="gmapping's srr 0.1 (translation error per translation)"),
+        "yaw_deg_per_m": number(ge=0, le=5.7, why="gmapping's str 0.1 rad (rotation error per metre)")}),
     "log_odds": section(LogOddsConfig, {"hit": POSITIVE, "miss": number(lt=0), "clamp": POSITIVE}),
     "occupied_thresh": number(gt=0, lt=1), "free_thresh": number(gt=0, lt=1), "publish_period_s": POSITIVE,
     "linear_update_m": NON_NEGATIVE, "angular_update_rad": NON_NEGATIVE})
@@ -361,7 +384,7 @@ def _build(data, source: str) -> Scenario:
                   f"{merger.roi_m:g} m)", merger.window_m)
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
     duration_s = POSITIVE(data.get("duration_s", one_tour), "duration_s")
-    dt_s = POSITIVE(data.get("dt_s", 0.1), "dt_s")
+    dt_s = DT_S(data.get("dt_s", 0.1), "dt_s")
     if dt_s > duration_s:
         raise bad("dt_s", f"a number <= duration_s ({duration_s:g} s): at least one tick", dt_s)
     if duration_s / dt_s > MAX_TICKS:

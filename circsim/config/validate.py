@@ -23,8 +23,10 @@ def bad(path: str, expected: str, v) -> Invalid:
     return Invalid(path, f"expected {expected}, got {v!r}")
 
 
-def number(gt=None, ge=None, lt=None, le=None):
-    """A finite int or float (not a bool) within the given bounds, returned as float."""
+def number(gt=None, ge=None, lt=None, le=None, why: str = ""):
+    """A finite int or float (not a bool) within the given bounds, returned as float; ``why`` says where
+    a physical range comes from (a sensor's datasheet, a ROS package's default: the scenario reference
+    prints it)."""
     low = ("(", f"{gt:g}") if gt is not None else ("[", f"{ge:g}") if ge is not None else None
     high = (f"{lt:g}", ")") if lt is not None else (f"{le:g}", "]") if le is not None else None
     if low and high:
@@ -44,6 +46,7 @@ def number(gt=None, ge=None, lt=None, le=None):
         return float(v)
     check.bounds = bounds
     check.expected = "a number" + bounds
+    check.why = why
     return check
 
 
@@ -158,8 +161,9 @@ def section(cls, schema: dict, required=()):
 
 
 def describe(check) -> str:
-    """What ``check`` expects, in the words of its error message (for the scenario reference)."""
-    return getattr(check, "expected", None) or "(see the loader)"
+    """What ``check`` expects, in the words of its error message, and why (for the scenario reference)."""
+    why = getattr(check, "why", "")
+    return (getattr(check, "expected", None) or "(see the loader)") + (f" — {why}" if why else "")
 
 
 def join(path: str, key) -> str:

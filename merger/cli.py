@@ -43,8 +43,8 @@ from .limits import MAX_ROI_M, MIN_ROI_CELLS
 from .measures import MEASURES
 from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
 from .team.orders import MapInput, MergeParams, merge_team
-from .team.verify import no_evidence, verify, verify_contrast
-from .transform import canvas, paste, rotation, warp_grid
+from .team.verify import no_evidence
+from .transform import resample, rotation
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -126,13 +126,18 @@ def check_roi(roi_m: float, resolution: float, path) -> None:
                          f"{MIN_ROI_CELLS * resolution:g} m")
 
 
-def add_merge_options(p: argparse.ArgumentParser) -> None:
+def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> None:
+    """The options of a merge; ``orders``: also those about merge orders (not for ``align``: one pair)."""
     d = MergeParams()
     p.add_argument("--roi", type=float, default=d.roi_m, metavar="M",
                    help=f"side of the square region of interest, metres, at most {MAX_ROI_M:g} and {MAX_ROI_CELLS} "
                         f"cells of the maps (default {d.roi_m})")
-    p.add_argument("--measure", choices=MEASURES, default=d.measure)
-    p.add_argument("--method", choices=sorted(SEARCH_METHODS), default=d.method)
+    p.add_argument("--measure", choices=MEASURES, default=d.measure,
+                   help=f"what the search maximizes on the ROI: similarity (the thesis's ω̃), birk_carpin (ω, "
+                        f"counts free/free) or ncc (cross-correlation of occupied cells) (default {d.measure})")
+    p.add_argument("--method", choices=sorted(SEARCH_METHODS), default=d.method,
+                   help=f"fast: the branch and bound; reference: the compiled exhaustive search, the same "
+                        f"answer, far slower; spec: its numpy definition (small maps; tests) (default {d.method})")
     p.add_argument("--window", type=float, default=d.window_m, metavar="M",
                    help=f"the centers are trusted to ±M metres on each axis: the search covers every translation "
                         f"within it jointly with the rotation (default {d.window_m}; 0 = rotation only, the "
@@ -140,11 +145,12 @@ def add_merge_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-refine", dest="refine", action="store_false",
                    help="report the search grid's answer (θ on the 0.1° grid, t in whole cells) without the "
                         "sub-cell refinement")
-    p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false",
-                   help="merge: keep the highest-Σν order's own placement (the thesis's rule) instead of the "
-                        "mean of the accepted orders that agree with it, verified")
+    if orders:
+        p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false",
+                       help="keep the highest-Σν order's own placement (the thesis's rule) instead of the "
+                            "mean of the accepted orders that agree with it, verified")
     p.add_argument("--nu-min", type=float, default=d.nu_min,
-                   help=f"verification threshold in [-1, 1] (default {d.nu_min})")
+                   help=f"verification threshold in [0, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
                    help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
     p.add_argument("--verification", choices=("whole_map", "contrast"), default=d.verification,
@@ -177,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--center", required=True, metavar="X,Y",
                    help="common center X,Y in REF's frame (and MOVING's), e.g. --center -1.2,0.5")
     a.add_argument("--center-moving", metavar="X,Y", help="common center X,Y in MOVING's frame, when it differs")
-    add_merge_options(a)
+    add_merge_options(a, orders=False)
     m = sub.add_parser("merge", help="merge N ≥ 2 maps in all orders and write the verified result")
     m.add_argument("maps", type=Path, nargs="*", help="maps (map_server YAML); results in the first one's frame")
     m.add_argument("--bag", type=Path, metavar="BAG", help="read the maps from a ROS 2 bag instead (the last "
@@ -192,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="three robots' partial maps of a generated scene (or of a saved map, "
                                      "--real), saved and merged")
     d.add_argument("-o", "--output", type=Path, default=Path("out/merger-demo"), help="output folder")
-    d.add_argument("--seed", type=int, default=7)
+    d.add_argument("--seed", type=int, default=7, help="the scene's, the robots' and the center errors' random "
+                   "seed, an integer >= 0 (default 7): the same seed gives the same maps")
     d.add_argument("--arc", type=float, default=30.0, help="each robot's displacement ±φ in degrees")
     d.add_argument("--real", type=Path, metavar="MAP.yaml",
                    help="cut the robots' views out of this saved map (ROS map_server) instead of a generated "
@@ -218,8 +225,8 @@ def params_from(args) -> MergeParams:
     if not (math.isfinite(args.window) and 0 <= args.window <= most + 1e-12):
         raise UsageError(f"--window: expected a number of metres in [0, {most:g}] (0: rotation only; at most a "
                          f"quarter of the --roi side {args.roi:g} m), got {args.window:g}")
-    if not (math.isfinite(args.nu_min) and -1.0 <= args.nu_min <= 1.0):
-        raise UsageError(f"--nu-min: expected a number in [-1, 1], got {args.nu_min:g}")
+    if not (math.isfinite(args.nu_min) and 0.0 <= args.nu_min <= 1.0):  # ν is ω̃ on the whole maps, in [0, 1]
+        raise UsageError(f"--nu-min: expected a number in [0, 1] (ν is ω̃ on the whole maps), got {args.nu_min:g}")
     if args.min_support < 0:
         raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
     for opt, v in (("--tolerance", args.tolerance), ("--contrast-min", args.contrast_min)):
@@ -230,92 +237,86 @@ def params_from(args) -> MergeParams:
     try:
         return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
                            min_support=args.min_support, window_m=args.window, refine=args.refine,
-                           combine_orders=args.combine_orders, roi_min_support=args.roi_min_support,
+                           combine_orders=getattr(args, "combine_orders", True), roi_min_support=args.roi_min_support,
                            verification=args.verification, tolerance_m=args.tolerance,
                            contrast_min=args.contrast_min)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
 
 
-def contrast_dict(v) -> dict:
-    """The contrast evidence of a verification as JSON fields (none for the thesis's rule)."""
-    k = v.contrast
-    if k is None:
-        return {}
-    return {"contrast": k.contrast, "fit": k.best, "rival_fit": k.rival, "rival_offset_deg": k.rival_at[0],
-            "refined_offset": {"theta_deg": k.best_at[0], "cells": [k.best_at[1], k.best_at[2]]}}
-
-
 def _xy(v) -> str:
     return f"({v[0]:.3f}, {v[1]:.3f})"
 
 
+def pair_names(ref: Path, moving: Path) -> tuple[str, str]:
+    """The names ``merger merge REF MOVING`` gives the two maps (their stems), or "ref"/"moving" for one
+    file given twice."""
+    try:
+        return tuple(map_names([ref, moving]))
+    except UsageError:
+        return "ref", "moving"
+
+
 def cmd_align(args) -> int:
+    """MOVING searched onto REF and judged by every check of ``merger merge`` (the one order (0, 1) of
+    :func:`merge_team`: the ambiguity rule's runner-up, the verification, the guard beyond the window):
+    align accepts exactly what merge would accept of that search."""
     params = params_from(args)
     c_ref = parse_xy(args.center, "--center")
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
     ref, mov = load_map(args.ref), load_map(args.moving)
+    (mov,), notes = same_resolution([args.ref, args.moving], [ref, mov])
     check_roi(params.roi_m, ref.resolution, args.ref)
     check_center(ref, c_ref, params.roi_m, "--center", args.ref)
     check_center(mov, c_mov, params.roi_m, "--center-moving" if args.center_moving else "--center", args.moving)
-    al = align(ref, mov, center_ref=c_ref, center_moving=c_mov, roi_m=params.roi_m, measure=params.measure,
-               method=params.method, window_m=params.window_m, refine=params.refine,
-               roi_min_support=params.roi_min_support)
+    names = pair_names(args.ref, args.moving)
+    res = merge_team([MapInput(names[0], ref, c_ref), MapInput(names[1], mov, c_mov)], params, orders=[(0, 1)])
+    o = res.top
+    al = o.steps[0][1]
+    where = {"ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
+             "center_moving": list(c_mov), "resampled": notes}
     if not al.has_evidence:
         why = no_evidence(al, params.roi_min_support)
         if args.json:
-            print(json.dumps({**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving),
-                              "center_ref": list(c_ref), "center_moving": list(c_mov), "verdict": "no_evidence",
+            print(json.dumps({**al.to_dict(), **where, "verdict": "no_evidence", "rule": "no_evidence",
                               "reason": why}))
         else:
             print(f"no evidence  {why}")
         return 1
-    tx, ty = al.translation_m
-    c_target = (c_ref[0] + tx, c_ref[1] + ty)  # where MOVING's center lands in REF's frame
-    cv = canvas(ref, [(mov, al.theta_deg, c_mov)], c_target)
-    if params.verification == "contrast":
-        v = verify_contrast(paste(ref, cv), warp_grid(mov, al.theta_deg, c_mov, c_target, cv), c_target,
-                            tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
-                            min_support=params.min_support)
-    else:
-        v = verify(paste(ref, cv).states, warp_grid(mov, al.theta_deg, c_mov, c_target, cv).states,
-                   nu_min=params.nu_min, min_support=params.min_support)
-    out = {**al.to_dict(), "ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
-           "center_moving": list(c_mov), "verdict": "accepted" if v.passed else "rejected", "verification": {"nu": v.nu, "agree": v.counts.agree,
-                                                         "disagree": v.counts.disagree, "support": v.support,
-                                                         "nu_min": params.nu_min,
-                                                         "min_support": params.min_support,
-                                                         "accepted": v.passed, "reason": v.reason,
-                                                         **contrast_dict(v)}}
+    v = next(iter(o.checks.values()))
+    out = {**al.to_dict(), **where, "verdict": "accepted" if res.accepted else "rejected", "rule": res.rule,
+           "reason": res.reason,
+           "verification": {**v.to_dict(), "nu_min": params.nu_min, "min_support": params.min_support,
+                            "accepted": v.passed}}
     if args.json:
         print(json.dumps(out))
-    else:
-        # REF's center in MOVING's frame implied by (θ, t): x_ref = c_ref + R(θ)(x_moving − c_mov')
-        d = rotation(-al.theta_deg) @ np.array([tx, ty])
-        c_mov_fix = (c_mov[0] - d[0], c_mov[1] - d[1])
-        how = f"window ±{params.window_m:g} m, " if params.window_m > 0 else "rotation only (--window 0), "
-        how += (f"refined from the grid answer {al.theta_grid_deg:.1f} deg, {_xy(al.translation_grid_m)} m"
-                if al.refined else "grid answer: 0.1 deg, whole cells")
-        print(f"theta        {al.theta_deg:9.2f} deg   (x_ref = c_ref + t + R(theta)(x_moving - c_moving))")
-        print(f"translation  {tx:+.3f}, {ty:+.3f} m  ({how})")
-        print(f"             MOVING's center lands at {_xy(c_target)} in REF's frame; given REF center "
-              f"{_xy(c_ref)}: correction ({tx:+.3f}, {ty:+.3f}) m")
-        print(f"             equivalently, with REF's center exact, MOVING's center is {_xy(c_mov_fix)} "
-              f"in its own frame (given {_xy(c_mov)})")
-        print(f"score        {al.score:9.3f}       ({al.measure} on the {params.roi_m:g} m ROI; "
-              f"agree {al.counts.agree}, disagree {al.counts.disagree})")
-        print(f"runner-up    {al.runner_up_deg:9.1f} deg   score {al.runner_up_score:.3f}"
-              + ("" if al.evidence.get("runner_up") == "exact" else
-                 "   (an upper bound: the search's envelope)" if al.evidence.get("runner_up") == "upper_envelope"
-                 else "   (approximate)"))
-        verdict = "ACCEPTED" if v.passed else f"REJECTED ({v.reason})"
-        if v.contrast is not None:
-            k = v.contrast
-            print(f"verify       contrast {k.contrast:.2f} (fit {k.best:.3f} vs rival {k.rival:.3f} at "
-                  f"{(al.theta_deg + k.rival_at[0]) % 360:.0f} deg; whole-map ν {v.nu:.3f}): {verdict}")
-        else:
-            print(f"verify       ν = {v.nu:.3f} on whole maps, support {v.support}: {verdict}")
-    return 0 if v.passed else 1
+        return 0 if res.accepted else 1
+    for note in notes:
+        print(f"note         {note}")
+    tx, ty = al.translation_m
+    c_target = (c_ref[0] + tx, c_ref[1] + ty)  # where MOVING's center lands in REF's frame
+    # REF's center in MOVING's frame implied by (θ, t): x_ref = c_ref + R(θ)(x_moving − c_mov')
+    d = rotation(-al.theta_deg) @ np.array([tx, ty])
+    c_mov_fix = (c_mov[0] - d[0], c_mov[1] - d[1])
+    how = f"window ±{params.window_m:g} m, " if params.window_m > 0 else "rotation only (--window 0), "
+    how += (f"refined from the grid answer {al.theta_grid_deg:.1f} deg, {_xy(al.translation_grid_m)} m"
+            if al.refined else "grid answer: 0.1 deg, whole cells")
+    print(f"theta        {al.theta_deg:9.2f} deg   (x_ref = c_ref + t + R(theta)(x_moving - c_moving))")
+    print(f"translation  {tx:+.3f}, {ty:+.3f} m  ({how})")
+    print(f"             MOVING's center lands at {_xy(c_target)} in REF's frame; given REF center "
+          f"{_xy(c_ref)}: correction ({tx:+.3f}, {ty:+.3f}) m")
+    print(f"             equivalently, with REF's center exact, MOVING's center is {_xy(c_mov_fix)} "
+          f"in its own frame (given {_xy(c_mov)})")
+    print(f"score        {al.score:9.3f}       ({al.measure} on the {params.roi_m:g} m ROI; "
+          f"agree {al.counts.agree}, disagree {al.counts.disagree})")
+    print(f"runner-up    {al.runner_up_deg:9.1f} deg   score {al.runner_up_score:.3f}"
+          + ("" if al.evidence.get("runner_up") == "exact" else
+             "   (an upper bound: the search's envelope)" if al.evidence.get("runner_up") == "upper_envelope"
+             else "   (approximate)"))
+    print(f"verify       {rule_of([v])}: {evidence_text(v)}: {'passed' if v.passed else 'failed'}")
+    print("verdict      " + ("ACCEPTED" if res.accepted else f"REJECTED by {refusal(res)}")
+          + "   (every check of `merger merge`)")
+    return 0 if res.accepted else 1
 
 
 def map_names(paths: list[Path]) -> list[str]:
@@ -342,9 +343,10 @@ def merge_inputs(paths: list[Path], centers: list[str], roi_m: float) -> list[Ma
     cs = [parse_xy(c, "--center") for c in centers] * (len(paths) if len(centers) == 1 else 1)
     names = map_names(paths)
     grids = [load_map(p) for p in paths]
-    check_same_resolution(paths, grids)
+    rest, notes = same_resolution(paths, grids)
+    grids = [grids[0], *rest]
     check_map_centers(paths, grids, cs, roi_m)
-    return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)]
+    return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)], notes
 
 
 def check_map_centers(paths, grids, centers, roi_m: float) -> None:
@@ -370,32 +372,95 @@ def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: lis
         raise UsageError(f"--center: expected once or once per topic ({len(topics)}), got {len(centers)}")
     cs = [parse_xy(c, "--center") for c in centers] * (len(topics) if len(centers) == 1 else 1)
     grids = read_bag_maps(bag, topics)
-    check_same_resolution([f"{bag}:{t}" for t in topics], [grids[t] for t in topics])
-    check_map_centers([f"{bag}:{t}" for t in topics], [grids[t] for t in topics], cs, roi_m)
-    return [MapInput(n, grids[t], c) for n, t, c in zip(topic_names(topics), topics, cs, strict=True)]
+    where = [f"{bag}:{t}" for t in topics]
+    rest, notes = same_resolution(where, [grids[t] for t in topics])
+    placed = [grids[topics[0]], *rest]
+    check_map_centers(where, placed, cs, roi_m)
+    return [MapInput(n, g, c) for n, g, c in zip(topic_names(topics), placed, cs, strict=True)], notes
 
 
-def check_same_resolution(paths: list[Path], grids) -> None:
-    """Maps of different cell sizes are refused: resampling would change what ω̃ counts."""
-    r0 = grids[0].resolution
+def same_resolution(paths: list, grids) -> tuple[list, list[str]]:
+    """``grids[1:]`` on the first map's cells (:func:`merger.transform.resample`, whose docstring gives the
+    rule for the three states), and one note per resampled map; both ``align`` and ``merge`` use it. A
+    resampled map larger than the map limits is refused."""
+    r0, out, notes = grids[0].resolution, [], []
     for p, g in zip(paths[1:], grids[1:], strict=True):
         if not math.isclose(g.resolution, r0, rel_tol=1e-6):
-            raise UsageError(f"{p}: resolution {g.resolution:g} m per cell, but {paths[0]} has {r0:g}: expected "
-                             "maps of one resolution (resample one first)")
+            h, w = (round(n * g.resolution / r0) for n in g.shape)
+            if h * w > MAX_MAP_CELLS or max(h, w) > MAX_MAP_SIDE:
+                raise UsageError(f"{p}: resolution {g.resolution:g} m per cell, {paths[0]} has {r0:g}: on "
+                                 f"{r0:g} m cells it would be {w} x {h} cells, beyond the limit of "
+                                 f"{MAX_MAP_CELLS:,} cells ({MAX_MAP_SIDE} a side); give the finer map first")
+            notes.append(f"{p}: resampled from {g.resolution:g} to {r0:g} m per cell, the first map's "
+                         "(occupied where any occupied cell falls, free where free cells cover half a cell; "
+                         "docs/real-maps.md)")
+            g = resample(g, r0)
+        out.append(g)
+    return out, notes
 
 
-def report_merge(res, as_json: bool) -> None:
+RULE_NAMES = {"verification": "verification", "no_evidence": "no evidence", "ambiguity": "the ambiguity rule",
+              "guard": "the guard beyond the window"}
+
+
+def evidence_text(v, label: str = "") -> str:
+    """The figures of the rule that verified a pair, read from its :class:`~merger.team.verify.Verification`:
+    the contrast, its fit, rival and support when the contrast rule decided (ν then only for the record),
+    else ν and its support."""
+    name = f"{label} " if label else ""
+    k = v.contrast
+    if k is not None:
+        rival = (f"rival {k.rival:.3f} at {k.rival_at[0]:+.0f}°" if k.rival > 0 and math.isfinite(k.rival_at[0])
+                 else "no rival")
+        return f"{name}contrast {k.contrast:.2f} (fit {k.best:.3f} vs {rival}, {k.support} cells; ν {v.nu:.2f})"
+    return f"{name}ν {v.nu:.3f} ({v.support} cells)"
+
+
+def rule_of(checks) -> str:
+    """The verification rule the checks ran: "contrast" when they carry contrast evidence, else "whole-map ν"."""
+    return "contrast" if any(v.contrast is not None for v in checks) else "whole-map ν"
+
+
+def order_mark(o, res) -> str:
+    """An order's verdict in the text output: never "accepted" for what the cycle then refuses."""
+    if o is res.chosen:
+        return "accepted"
+    if not o.accepted:
+        return f"rejected: {o.reason}"
+    if res.chosen is not None:
+        return "verified, not chosen" + (" (averaged into the chosen)" if o.order in res.chosen.combined else "")
+    return f"verified, but the cycle is rejected by {RULE_NAMES[res.rule]} (below)"
+
+
+def verdict_line(res) -> str:
+    """The cycle's verdict: the chosen order and the rule that accepted it, or the rule that refused it and
+    its figures."""
+    if res.chosen is not None:
+        return (f"chosen: {'→'.join(res.chosen.order)} (accepted by {rule_of(res.chosen.checks.values())}: "
+                + "; ".join(evidence_text(v, k) for k, v in res.chosen.checks.items()) + ")")
+    return f"REJECTED by {refusal(res)}"
+
+
+def refusal(res) -> str:
+    """The rule that refused a cycle and its figures: "the guard beyond the window: ..." (the reason without
+    the rule's own prefix)."""
+    reason = res.reason
+    for prefix in ("beyond the window: ", "ambiguous: "):
+        reason = reason.removeprefix(prefix)
+    return f"{RULE_NAMES[res.rule]}: {reason}"
+
+
+def report_merge(res, as_json: bool, extra: dict | None = None) -> None:
     if as_json:
-        print(json.dumps(res.to_dict()))
+        print(json.dumps({**res.to_dict(), **(extra or {})}))
         return
     for o in res.orders:  # two lines per order: verdict, then each map's placement onto the first map
-        nus = ", ".join(f"{k} {v:.3f}" for k, v in o.nu.items())
-        mark = "accepted" if o.accepted else f"rejected: {o.reason}"
+        ev = ", ".join(evidence_text(v, k) for k, v in o.checks.items())
         star = "*" if o is res.chosen else " "
-        print(f"{star} order {'→'.join(o.order):<28} ν: {nus}  [{mark}]")
+        print(f"{star} order {'→'.join(o.order):<28} {ev}  [{order_mark(o, res)}]")
         print("      " + "; ".join(f"{k} {v:.2f}° t ({o.translation(k)[0]:+.3f}, {o.translation(k)[1]:+.3f}) m"
                                    for k, v in o.theta_deg.items() if k != res.frame))
-    print(f"merge cycle {res.wall_ms:.0f} ms; {'chosen: ' + '→'.join(res.chosen.order) if res.chosen else 'no verified merge'}")
+    print(f"merge cycle {res.wall_ms:.0f} ms; {verdict_line(res)}")
 
 
 def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
@@ -442,13 +507,17 @@ def check_stem(path: Path, option: str) -> Path:
 
 
 def overlay_title(res) -> str:
-    """One ASCII line for the overlay picture (OpenCV's fonts have no θ, ν, →): the order shown, each
-    map's angle, the ν values and the verdict."""
+    """ASCII lines for the overlay picture (OpenCV's fonts have no θ, ν, →): the order shown, each map's
+    angle and the verdict (with the rule that decided); then the evidence of that rule, pair by pair
+    (:func:`evidence_text`)."""
     o = res.chosen or res.top
     th = ", ".join(f"{k} {v:.1f}" for k, v in o.theta_deg.items() if k != res.frame)
-    nus = " ".join(f"{v:.2f}" for v in o.nu.values())
-    verdict = "ACCEPTED" if o.accepted else f"REJECTED, written with --force ({ascii_text(o.reason)})"
-    return f"{'>'.join(o.order)}  theta deg: {th}  nu: {nus}  {verdict}"
+    if res.chosen is not None:
+        verdict = f"ACCEPTED by {rule_of(o.checks.values())}"
+    else:
+        verdict = f"REJECTED, written with --force: {refusal(res)}"
+    evidence = "; ".join(evidence_text(v, k) for k, v in o.checks.items())
+    return ascii_text(f"{'>'.join(o.order)}  theta deg: {th}  {verdict}\n{evidence}")
 
 
 _ASCII = {"ν": "nu", "ω̃": "omega", "ω": "omega", "θ": "theta", "φ": "phi", "Δ": "d", "→": ">", "≥": ">=",
@@ -475,15 +544,19 @@ def cmd_merge(args) -> int:
     y, img = map_paths(out)
     inputs = {args.bag: "--bag"} if args.bag else {q: "map" for p in args.maps for q in map_input_paths(p)}
     check_outputs({y: "-o", img: "-o", overlay_path(y): "-o"}, inputs)  # before the maps are decoded
-    maps = (bag_inputs(args.bag, args.topics, args.maps, args.center, params.roi_m) if args.bag
-            else merge_inputs(args.maps, args.center, params.roi_m))
+    maps, notes = (bag_inputs(args.bag, args.topics, args.maps, args.center, params.roi_m) if args.bag
+                   else merge_inputs(args.maps, args.center, params.roi_m))
     ensure_output_dir(out.parent, "-o")
-    res = merge_team(maps, params)
-    report_merge(res, args.json)
+    if not args.json:
+        for note in notes:
+            print(f"note: {note}")
+    # two maps: the second searched onto the first, as `merger align FIRST SECOND` does (same checks, same answer)
+    res = merge_team(maps, params, orders=[(0, 1)] if len(maps) == 2 else None)
+    report_merge(res, args.json, {"resampled": notes})
     written = write_merge(res, maps, out, args.force)
     if not args.json:
         print("wrote " + ", ".join(map(str, written)) if written else
-              "nothing written (no order passed verification; --force writes the best hypothesis)")
+              f"nothing written (rejected by {RULE_NAMES[res.rule]}; --force writes the best hypothesis)")
     return 0 if res.accepted else 1
 
 

@@ -13,7 +13,7 @@ import math
 import cv2
 import numpy as np
 
-from .grid import UNKNOWN_S, OccupancyGrid
+from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 
 
 def rotation(theta_deg: float) -> np.ndarray:
@@ -235,3 +235,33 @@ def paste(ref: OccupancyGrid, target: OccupancyGrid) -> OccupancyGrid:
     out = np.zeros(target.shape, np.uint8)
     out[dr:dr + ref.height, dc:dc + ref.width] = ref.states
     return OccupancyGrid(out, target.resolution, target.origin)
+
+
+RESAMPLE_FREE_FRACTION = 0.5  # a coarser cell is free when free cells cover at least this share of it
+
+
+def resample(grid: OccupancyGrid, resolution: float) -> OccupancyGrid:
+    """``grid`` on cells of ``resolution`` metres, same origin (OpenCV's ``resize``), with this rule for the
+    three states:
+
+    * **coarser cells** (``INTER_AREA``: each new cell averages the old cells it covers): *occupied* when
+      any occupied cell covers part of it (a one-cell wall stays a wall, as ω̃ counts walls), else *free*
+      when free cells cover at least ``RESAMPLE_FREE_FRACTION`` of it, else *unknown*;
+    * **finer cells** (``INTER_NEAREST``): each new cell takes the state of the old cell under its centre
+      (no state is invented).
+
+    The new grid has round(old side × old / new resolution) cells a side, so every cell lands within half
+    a new cell of its place at the far edge (exactly in place when the ratio is a whole number)."""
+    r0 = grid.resolution
+    if math.isclose(resolution, r0, rel_tol=1e-9):
+        return grid
+    h, w = grid.shape
+    size = (max(1, round(w * r0 / resolution)), max(1, round(h * r0 / resolution)))  # OpenCV: (width, height)
+    if resolution < r0:
+        states = cv2.resize(grid.states, size, interpolation=cv2.INTER_NEAREST)
+    else:
+        occ = cv2.resize((grid.states == OCCUPIED_S).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        free = cv2.resize((grid.states == FREE_S).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        states = np.where(occ > 1e-6, OCCUPIED_S, np.where(free >= RESAMPLE_FREE_FRACTION - 1e-6, FREE_S,
+                                                            UNKNOWN_S)).astype(np.uint8)
+    return OccupancyGrid(states, resolution, grid.origin)

@@ -49,8 +49,8 @@ def overlay_picture(layers: list[np.ndarray], names: list[str], resolution: floa
     """The overlay as a picture for people: (H, W, 3) uint8 RGB, top row = max y (as an image is shown).
 
     Cropped to the cells some robot knows (plus ``margin_cells``), each cell ``cell_px`` pixels (default:
-    4, fewer when the picture would exceed ``max_px``), under a ``title`` line (e.g. θ, ν and the verdict),
-    over a legend of each robot's occupied and free colours and a 1 m scale bar.
+    4, fewer when the picture would exceed ``max_px``), under ``title`` (one line per "\\n": e.g. θ and the
+    verdict, then its evidence), over a legend of each robot's occupied and free colours and a 1 m scale bar.
     """
     import cv2
 
@@ -77,12 +77,13 @@ def overlay_picture(layers: list[np.ndarray], names: list[str], resolution: floa
         x += need
     if line:
         lines.append(line)
-    title_h, legend_h = (24 if title else 0), 22 * len(lines) + 30
+    titles = title.split("\n") if title else []
+    title_h, legend_h = (20 * len(titles) + 4 if titles else 0), 22 * len(lines) + 30
     out = np.full((title_h + body.shape[0] + legend_h, width, 3), 255, np.uint8)
     out[title_h:title_h + body.shape[0], :body.shape[1]] = body
-    if title:
-        scale = min(0.5, 0.5 * width / max(cv2.getTextSize(title, font, 0.5, 1)[0][0], 1))
-        cv2.putText(out, title, (6, 17), font, scale, black, 1, cv2.LINE_AA)
+    for i, text in enumerate(titles):  # each line shrunk to the width if need be
+        scale = min(0.5, 0.5 * (width - 12) / max(cv2.getTextSize(text, font, 0.5, 1)[0][0], 1))
+        cv2.putText(out, text, (6, 17 + 20 * i), font, scale, black, 1, cv2.LINE_AA)
     y = title_h + body.shape[0] + 6
     for line in lines:
         for x, n, occ, free in line:

@@ -198,6 +198,7 @@ class OrderResult:
             "translation_m": {k: list(self.translation(k)) for k in self.theta_deg}, "accepted": self.accepted,
             "reason": self.reason, "nu": self.nu, "nu_sum": self.nu_sum,
             "support": {k: v.support for k, v in self.checks.items()},
+            "checks": {k: v.to_dict() for k, v in self.checks.items()},
             "steps": [{"moving": n, **a.to_dict()} for n, a in self.steps],
             "combined": [list(o) for o in self.combined],
         }
@@ -235,6 +236,20 @@ class TeamMergeResult:
         return self.chosen is not None
 
     @property
+    def rule(self) -> str:
+        """The rule that decided the cycle: "verification" (accepted, or the best order failed it — its
+        ``reason`` names the check and its figures), "no_evidence" (a search found nothing to align),
+        "ambiguity" (another accepted order places a map elsewhere) or "guard" (a search found a better
+        alignment beyond its translation window)."""
+        if self.accepted:
+            return "verification"
+        if self.ambiguity:
+            return "guard" if self.ambiguity.startswith("beyond the window") else "ambiguity"
+        if self.top.reason.startswith("no evidence"):
+            return "no_evidence"
+        return "verification"
+
+    @property
     def top(self) -> OrderResult:
         """The best hypothesis of the cycle, accepted or not (highest Σν)."""
         return self.chosen or max(self.orders, key=lambda o: o.nu_sum)
@@ -244,7 +259,8 @@ class TeamMergeResult:
         return tuple(o for o in self.orders if not o.accepted)
 
     def to_dict(self) -> dict:
-        return {"frame": self.frame, "accepted": self.accepted, "wall_ms": self.wall_ms,
+        return {"frame": self.frame, "accepted": self.accepted, "verdict": "accepted" if self.accepted else "rejected",
+                "rule": self.rule, "reason": self.reason, "wall_ms": self.wall_ms,
                 "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
                 "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
                 "chosen": self.chosen.to_dict() if self.chosen else None,
@@ -459,13 +475,16 @@ def _beyond(order: OrderResult) -> str:
         if al.window_m > 0 and al.beyond is not None:
             th, t, v = al.beyond
             return (f"beyond the window: {name}'s best alignment lies outside ±{al.window_m:g} m (θ {th:.0f}°, "
-                    f"t ({t[0]:+.2f}, {t[1]:+.2f}) m, coarse score {v:.3f}): the center error may exceed "
-                    f"half the window; widen merger.window_m")
+                    f"t ({t[0]:+.2f}, {t[1]:+.2f}) m, coarse score {v:.3f}; inside the window: θ "
+                    f"{al.theta_deg:.1f}°, score {al.score:.3f}): the center error may exceed half the window, "
+                    f"or the ROI holds too little of the maps; widen the window (merger.window_m, merger "
+                    f"--window) or the ROI (merger.roi_m, --roi)")
     return ""
 
 
 def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
-               reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
+               reuse: dict | None = None, memo: Memo | None = None,
+               orders: list[tuple[int, ...]] | None = None) -> TeamMergeResult:
     """Merge N ≥ 2 maps in every order, verify, and choose (thesis 3.3.1).
 
     Results are in the frame of ``maps[0]``; ``merged`` is the fused map of the chosen order.
@@ -473,12 +492,14 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,
     alignments of maps that carry a ``version`` are reused while both maps are unchanged; after the
     cycle it holds only this cycle's pairs. The result is the same as without it. ``memo``
     (:mod:`merger.team.memo`): search steps shared with the other robots of a simulation; the result is the
-    same, its ``charged_ms`` the computing time of the steps taken from the memo.
+    same, its ``charged_ms`` the computing time of the steps taken from the memo. ``orders``: the orders to
+    evaluate (default :func:`merge_orders`; ``merger align`` gives ``[(0, 1)]``: MOVING searched onto REF,
+    with every check of a merge).
     """
     t0 = time.perf_counter()
     if memo is not None:
         memo.take_charged_ms()
-    orders = merge_orders(len(maps), [m.name for m in maps])
+    orders = merge_orders(len(maps), [m.name for m in maps]) if orders is None else [tuple(o) for o in orders]
     warps = Warps(maps)
     # the orders are independent: searched side by side (merger.team.pool; the same result on any schedule)
     aligned = parallel_map(lambda o: align_order(maps, o, params, reuse, warps, memo), orders)

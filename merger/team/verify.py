@@ -31,6 +31,19 @@ class Verification:
     def support(self) -> int:
         return self.counts.support
 
+    def to_dict(self) -> dict:
+        """The evidence as JSON fields: ν, its counts, the verdict and, with the contrast rule, the fit, its
+        rival (offset from the placement) and the contrast's support."""
+        out = {"nu": self.nu, "agree": self.counts.agree, "disagree": self.counts.disagree,
+               "support": self.support, "passed": self.passed, "reason": self.reason}
+        k = self.contrast
+        if k is not None:
+            out.update(contrast=k.contrast, fit=k.best, rival_fit=k.rival, rival_offset_deg=k.rival_at[0],
+                       contrast_support=k.support,
+                       refined_offset={"theta_deg": k.best_at[0], "cells": [k.best_at[1], k.best_at[2]]})
+        return out
+
+
 
 def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
            label: str = "") -> Verification:

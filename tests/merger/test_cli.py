@@ -186,6 +186,7 @@ BAD_PARAMS = [
     (["--window", "-0.1"], "--window"), (["--window", "nan"], "--window"), (["--window", "inf"], "--window"),
     (["--window", "2.5"], "--window"), (["--roi", "4", "--window", "1.5"], "--window"),
     (["--window", "abc"], "--window"), (["--nu-min", "nan"], "--nu-min"), (["--nu-min", "5"], "--nu-min"),
+    (["--nu-min", "-0.5"], "--nu-min"),  # ν is ω̃ ≥ 0: a negative threshold accepted every placement
     (["--min-support", "-1"], "--min-support"), (["--roi", "nan"], "--roi"), (["--roi", "-2"], "--roi"),
     (["--roi", "1e6"], "--roi"), (["--roi", "inf"], "--roi"),
 ]
@@ -306,15 +307,32 @@ def test_the_same_map_twice_is_refused(saved, tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_maps_of_different_resolutions_are_refused(saved, tmp_path, capsys):
-    d, paths, centers, _ = saved
+def test_maps_of_different_resolutions_are_resampled_alike_by_align_and_merge(saved, tmp_path, capsys):
+    """Issue 36 item 7: merge refused ("resample one first", with no tool to do it) and align ran silently on
+    0.1 m against 0.05 m cells. Both now resample the other maps onto the first one's cells and say so."""
+    from merger.transform import resample
+
+    d, paths, centers, truth = saved
     g = load_map(paths[1])
-    coarse = save_map(type(g)(g.states[::2, ::2].copy(), 2 * g.resolution, g.origin), tmp_path / "coarse.yaml")[0]
-    out = tmp_path / "out"
-    assert main(["merge", str(paths[0]), str(coarse), "--center", centers[0], "-o", str(out / "m")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "coarse.yaml: resolution 0.1" in err and "expected maps of one resolution" in err
-    assert not out.exists() or list(out.iterdir()) == []
+    coarse = save_map(resample(g, 2 * g.resolution), tmp_path / "coarse.yaml")[0]
+    # upsampled walls are two cells thick: ω̃ drops (0.59 -> 0.41 here), the contrast rule still separates them
+    align = ["align", str(paths[0]), str(coarse), "--center", centers[0], "--center-moving", centers[1],
+             "--verification", "contrast"]
+    assert main([*align, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["resampled"]) == 1 and "coarse.yaml: resampled from 0.1 to 0.05 m per cell" in out["resampled"][0]
+    assert abs(angle_diff_deg(out["theta_deg"], truth["Auckland"])) <= 1.0
+    assert main(align) == 0
+    assert "note         " + out["resampled"][0] in capsys.readouterr().out
+    merge = ["merge", str(paths[0]), str(coarse), "--center", centers[0], "--center", centers[1],
+             "-o", str(tmp_path / "m"), "--verification", "contrast"]
+    assert main([*merge, "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["resampled"] == out["resampled"]
+    assert res["chosen"]["theta_deg"]["coarse"] == pytest.approx(out["theta_deg"])  # the same answer
+    assert main(merge) == 0
+    assert "note: " + out["resampled"][0] in capsys.readouterr().out
+    assert load_map(tmp_path / "m.yaml").resolution == g.resolution
 
 
 def test_merge_outputs_all_or_none(saved, tmp_path, capsys):
@@ -361,14 +379,16 @@ def test_overlay_picture_title_names_the_order_angles_nu_and_verdict(saved, tmp_
     d, paths, centers, truth = saved
     maps = [MapInput(p.stem, load_map(p), tuple(map(float, c.split(",")))) for p, c in zip(paths, centers,
                                                                                          strict=True)]
-    res = merge_team(maps, MergeParams())
+    res = merge_team(maps, MergeParams(verification="whole_map"))
     title = overlay_title(res)
-    assert title.isascii() and title.endswith("ACCEPTED") and ">".join(res.chosen.order) in title
-    assert f"{res.chosen.theta_deg[maps[1].name]:.1f}" in title
-    rejected = merge_team(maps, MergeParams(nu_min=0.99))
+    head, evidence = title.split("\n")
+    assert title.isascii() and head.endswith("ACCEPTED by whole-map nu") and ">".join(res.chosen.order) in head
+    assert f"{res.chosen.theta_deg[maps[1].name]:.1f}" in head
+    assert evidence == "; ".join(f"{k} nu {v.nu:.3f} ({v.support} cells)" for k, v in res.chosen.checks.items())
+    rejected = merge_team(maps, MergeParams(verification="whole_map", nu_min=0.99))
     rejected_title = overlay_title(rejected)
-    assert "REJECTED, written with --force" in rejected_title and rejected_title.isascii()
-    assert "nu(" in rejected_title and "?" not in rejected_title  # the reason's ν spelt out, not lost
+    assert "REJECTED, written with --force: verification: nu(" in rejected_title and rejected_title.isascii()
+    assert "?" not in rejected_title  # the reason's ν spelt out, not lost
     args = ["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m")]
     assert main(args) == 0
     img = cv2.imread(str(tmp_path / "m_overlay.png"))
@@ -386,3 +406,98 @@ def test_align_says_no_evidence_when_the_rois_hold_no_occupied_cell(tmp_path, ca
     assert rc == 1 and out.startswith("no evidence") and "50 cells of support" in out
     rc = main(["align", str(y), str(y), "--center", "0,0", "--roi", "2", "--window", "0.2", "--json"])
     assert rc == 1 and json.loads(capsys.readouterr().out)["verdict"] == "no_evidence"
+
+
+# --- issue 36 items 1-3: refusals that explain themselves, the evidence shown, align = merge ---
+
+
+def test_a_refusal_names_its_rule_and_figures_in_text_json_and_title(off_center, tmp_path, capsys):
+    """With a ±0.2 m window the pair passes verification but the guard beyond the window finds a better
+    alignment outside it. merge printed the order "[accepted]", then "no verified merge", the reason only in
+    the JSON's ambiguity field; align said ACCEPTED."""
+    from merger.cli import overlay_title
+    from merger.team.orders import MapInput, MergeParams, merge_team
+
+    args, *_ = off_center
+    y1, y2, c1, c2 = args[1], args[2], args[4], args[6]
+    merge = ["merge", y1, y2, "--center", c1, "--center", c2, "-o", str(tmp_path / "m"), "--roi", "4",
+             "--window", "0.2", "--verification", "contrast"]
+    assert main([*merge, "--json"]) == 1
+    res = json.loads(capsys.readouterr().out)
+    assert (res["verdict"], res["rule"]) == ("rejected", "guard")
+    assert res["reason"].startswith("beyond the window: mov's best alignment lies outside ±0.2 m")
+    assert all(o["accepted"] for o in res["orders"])  # the order itself passed verification
+    assert main(merge) == 1
+    text = capsys.readouterr().out
+    assert "[accepted]" not in text and "ACCEPTED" not in text
+    assert "[verified, but the cycle is rejected by the guard beyond the window (below)]" in text
+    assert "REJECTED by the guard beyond the window: mov's best alignment lies outside ±0.2 m" in text
+    assert "inside the window: θ" in text and "widen the window" in text
+    assert "nothing written (rejected by the guard beyond the window; --force" in text
+    # align: the same checks, the same verdict and reason
+    assert main([*args, "--window", "0.2", "--verification", "contrast", "--json"]) == 1
+    al = json.loads(capsys.readouterr().out)
+    assert (al["verdict"], al["rule"], al["reason"]) == ("rejected", "guard", res["reason"])
+    assert al["verification"]["passed"]
+    assert main([*args, "--window", "0.2", "--verification", "contrast"]) == 1
+    text = capsys.readouterr().out
+    assert "ACCEPTED" not in text and "verdict      REJECTED by the guard beyond the window: mov's best" in text
+    # the overlay written with --force says it too
+    maps = [MapInput("ref", load_map(y1), tuple(map(float, c1.split(",")))),
+            MapInput("mov", load_map(y2), tuple(map(float, c2.split(","))))]
+    title = overlay_title(merge_team(maps, MergeParams(roi_m=4, window_m=0.2, verification="contrast"),
+                                     orders=[(0, 1)]))
+    assert "REJECTED, written with --force: the guard beyond the window: mov's best alignment" in title
+
+
+def test_the_evidence_of_the_contrast_rule_is_shown(saved, tmp_path, capsys):
+    """With --verification contrast the title read "nu: 0.34 ACCEPTED" (as if ν ≥ 0.5 had been broken) and the
+    contrast, its rival and the support were printed nowhere."""
+    d, paths, centers, _ = saved
+    merge = ["merge", *map(str, paths), *sum((["--center", c] for c in centers), []), "-o", str(tmp_path / "m"),
+             "--verification", "contrast"]
+    assert main([*merge, "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    checks = res["chosen"]["checks"]
+    assert len(checks) == 3 and all({"contrast", "fit", "rival_fit", "rival_offset_deg", "contrast_support"}
+                                    <= set(c) for c in checks.values())
+    assert main(merge) == 0
+    text = capsys.readouterr().out
+    pair, c = next(iter(checks.items()))
+    assert f"{pair} contrast {c['contrast']:.2f} (fit {c['fit']:.3f} vs rival {c['rival_fit']:.3f} at " in text
+    assert f"{c['contrast_support']} cells; ν {c['nu']:.2f})" in text
+    assert "(accepted by contrast: " in text
+    from merger.cli import overlay_title
+    from merger.team.orders import MapInput, MergeParams, merge_team
+
+    maps = [MapInput(p.stem, load_map(p), tuple(map(float, c.split(",")))) for p, c in zip(paths, centers, strict=True)]
+    head, evidence = overlay_title(merge_team(maps, MergeParams(verification="contrast"))).split("\n")
+    assert head.endswith("ACCEPTED by contrast") and evidence.count("contrast ") == 3 and "rival" in evidence
+
+
+@pytest.mark.parametrize("window", ["0", "0.1", "0.2", "0.3"])
+def test_align_and_a_merge_of_the_same_pair_agree(off_center, tmp_path, capsys, window):
+    """align accepted (contrast 2.27) what merge refused (the guard): both now run every check of a merge, on
+    the same search (MOVING onto REF; a merge of two maps searches the second onto the first)."""
+    args, *_ = off_center
+    y1, y2, c1, c2 = args[1], args[2], args[4], args[6]
+    rc_a = main([*args, "--window", window, "--json"])
+    al = json.loads(capsys.readouterr().out)
+    rc_m = main(["merge", y1, y2, "--center", c1, "--center", c2, "-o", str(tmp_path / "m"), "--roi", "4",
+                 "--window", window, "--json"])
+    res = json.loads(capsys.readouterr().out)
+    assert rc_a == rc_m and (al["verdict"], al["rule"], al["reason"]) == (res["verdict"], res["rule"], res["reason"])
+    top = res["chosen"] or res["orders"][0]
+    assert top["steps"][0]["theta_deg"] == al["theta_deg"] and top["steps"][0]["translation_m"] == al["translation_m"]
+
+
+def test_align_help_lists_only_its_own_options():
+    """Issue 36 item 10: align --help listed the merge-only --no-combine-orders; --measure, --method and demo
+    --seed had no help."""
+    p = build_parser()
+    sub = next(a for a in p._actions if a.dest == "cmd").choices
+    assert "--no-combine-orders" not in sub["align"].format_help()
+    assert "--no-combine-orders" in sub["merge"].format_help()
+    for cmd, opt in (("align", "--measure"), ("align", "--method"), ("merge", "--method"), ("demo", "--seed")):
+        action = next(a for a in sub[cmd]._actions if opt in a.option_strings)
+        assert action.help, (cmd, opt)

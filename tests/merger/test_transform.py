@@ -58,3 +58,25 @@ def test_canvas_covers_all_and_paste_keeps_ref():
     assert p.count()["occupied"] == ref.count()["occupied"]
     w = warp_grid(mov, 90.0, (0.0, 0.0), (0.0, 0.0), cv)
     assert w.count()["free"] == pytest.approx(200, abs=10)
+
+
+def test_resample_keeps_walls_and_follows_the_ternary_rule():
+    """Coarser: occupied where any occupied cell falls, free where free cells cover at least half, else
+    unknown; finer: the state under each new cell's centre; the origin and the extent stay."""
+    from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+    from merger.transform import resample
+
+    s = np.zeros((4, 6), np.uint8)
+    s[:2, :2] = [[OCCUPIED_S, FREE_S], [FREE_S, FREE_S]]  # one wall cell among free: occupied
+    s[:2, 2:4] = [[FREE_S, FREE_S], [UNKNOWN_S, UNKNOWN_S]]  # half free: free
+    s[:2, 4:6] = [[FREE_S, UNKNOWN_S], [UNKNOWN_S, UNKNOWN_S]]  # a quarter free: unknown
+    s[2:, :] = FREE_S
+    g = OccupancyGrid(s, 0.05, (1.0, -2.0))
+    c = resample(g, 0.1)
+    assert c.shape == (2, 3) and c.resolution == 0.1 and c.origin == g.origin
+    assert c.states.tolist() == [[OCCUPIED_S, FREE_S, UNKNOWN_S], [FREE_S, FREE_S, FREE_S]]
+    f = resample(c, 0.05)
+    assert f.shape == g.shape and np.array_equal(f.states, np.kron(c.states, np.ones((2, 2), np.uint8)))
+    assert resample(g, 0.05) is g
+    odd = resample(g, 0.07)  # not a whole ratio: round(side x 0.05 / 0.07) cells
+    assert odd.shape == (round(4 * 5 / 7), round(6 * 5 / 7)) and (odd.states == OCCUPIED_S).sum() == 1

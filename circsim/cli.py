@@ -298,6 +298,9 @@ def main(argv=None) -> int:
 def _main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
+        from merger.team.pool import threads
+
+        threads()  # MERGER_THREADS=abc: refused before any work (ValueError), not "every core"
         fn = COMMANDS.get(args.cmd) or args.func
         return fn(args)
     except KeyboardInterrupt:
@@ -313,7 +316,7 @@ def _main(argv=None) -> int:
             print(f"circsim: error: {e}", file=sys.stderr)
             return 2
         if isinstance(e, OSError):  # a file the user named cannot be read or written
-            print(f"circsim: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+            print(f"circsim: error: {f'{e.filename}: ' if e.filename else ''}{e.strerror or e}", file=sys.stderr)
             return 2
         raise
 

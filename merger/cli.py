@@ -43,6 +43,7 @@ from .limits import MAX_ROI_M, MIN_ROI_CELLS
 from .measures import MEASURES
 from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
 from .team.orders import MapInput, MergeParams, merge_team
+from .team.pool import threads
 from .team.verify import no_evidence
 from .transform import resample, rotation
 
@@ -561,6 +562,7 @@ def cmd_merge(args) -> int:
 
 
 def cmd_demo(args) -> int:
+    from .grid import FREE_S
     from .synthetic import (
         arc_viewpoints,
         partial_view,
@@ -597,6 +599,9 @@ def cmd_demo(args) -> int:
     if args.real:
         world = load_map(args.real)
         check_roi(params.roi_m, world.resolution, args.real)
+        if not (world.states == FREE_S).any():  # nowhere to stand: the demo's robots need free space
+            raise UsageError(f"--real {args.real}: the map has no free cell: expected a map with free space for "
+                             "the robots to stand in")
         free_c, clearance = widest_free_point(world)
         if args.real_center:
             center = parse_xy(args.real_center, "--real-center")
@@ -667,6 +672,7 @@ def cmd_demo(args) -> int:
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(join_negative_xy(sys.argv[1:] if argv is None else list(argv)))
+        threads()  # MERGER_THREADS=abc: refused before any work (ValueError), not "every core"
         return {"align": cmd_align, "merge": cmd_merge, "demo": cmd_demo}[args.cmd](args)
     except (UsageError, MapFileError, ValueError) as e:
         print(f"merger: error: {e}", file=sys.stderr)
@@ -677,7 +683,7 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at interpreter exit
         return 1
     except OSError as e:  # a file the user named cannot be read or written
-        print(f"merger: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+        print(f"merger: error: {f'{e.filename}: ' if e.filename else ''}{e.strerror or e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("merger: interrupted", file=sys.stderr)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import math
+import unicodedata
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
@@ -419,6 +420,10 @@ def _world(v) -> WorldSpec:
 def _robots(v) -> RobotsSpec:
     r = section(lambda **kw: kw, ROBOTS_SCHEMA)(v, "robots")
     names = r.get("names", RobotsSpec.names)
+    for i, name in enumerate(names):  # names head the summary's rows and the recording's entities
+        if not name.strip() or any(unicodedata.category(ch) == "Cc" for ch in name):
+            raise bad(f"robots.names[{i}]", "a name of printable characters (not empty; no newline, tab or "
+                      "other control character)", name)
     n = len(names)
     if len(set(names)) != n:
         raise bad("robots.names", "unique robot names", list(names))

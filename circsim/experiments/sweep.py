@@ -178,9 +178,14 @@ def _exit_with_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _init_worker(parent_pid: int | None = None) -> None:
+_STARTED = None  # in a worker: the queue on which it says which run it starts (see _local)
+
+
+def _init_worker(parent_pid: int | None = None, started=None) -> None:
     import signal
 
+    global _STARTED
+    _STARTED = started
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it stops the pool)
     if parent_pid is not None:
         _exit_with_parent(parent_pid)
@@ -203,24 +208,60 @@ def _outcome(task: RunTask, fut):
         return task, None, "".join(traceback.format_exception(e)).strip()
 
 
-def _local(tasks: list[RunTask], workers: int):
+WORKER_DEATHS_PER_RUN = 2  # a run this often in a worker that died is then run alone (which tells if it is the cause)
+
+
+def _run_reporting(fn, task):
+    """In a worker: say that ``task`` starts, then run it."""
+    if _STARTED is not None:
+        _STARTED.put(task.key)
+    return fn(task)
+
+
+def _local(tasks: list[RunTask], workers: int, fn=run_one):
+    """Outcomes of ``fn`` over ``tasks`` on a pool of processes. A worker killed outright (SIGKILL, the OOM
+    killer) breaks the whole pool: every run not yet finished fails with BrokenProcessPool, without saying
+    which one was in the dead worker. Workers say which run they start, so the runs that had not started go
+    to a new pool as they were; those that were running (one of them in the dead worker) too, and one that
+    was running in :data:`WORKER_DEATHS_PER_RUN` dying pools is then run alone: only a run whose own pool
+    (of one) breaks is recorded as failed. The other runs of the sweep finish."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     ctx = multiprocessing.get_context("spawn")  # no fork of a parent holding threads (tqdm, OpenCV)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                               initargs=(os.getpid(),))
-    futures = {pool.submit(run_one, t): t for t in tasks}
-    try:
-        for f in as_completed(futures):
-            yield _outcome(futures[f], f)
-    except BaseException:  # Ctrl-C: stop now, the finished rows are already written
-        procs = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for p in procs:
-            p.terminate()
-        raise
-    pool.shutdown()
+    deaths: dict[str, int] = {}
+    todo, alone = list(tasks), []
+    while todo or alone:
+        batch, todo = (todo, []) if todo else ([alone.pop(0)], [])
+        started = ctx.SimpleQueue()
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(batch)), mp_context=ctx,
+                                   initializer=_init_worker, initargs=(os.getpid(), started))
+        futures = {pool.submit(_run_reporting, fn, t): t for t in batch}
+        running: set[str] = set()
+        done: set[str] = set()
+        try:
+            for f in as_completed(futures):
+                task = futures[f]
+                if not isinstance(f.exception(), BrokenProcessPool):
+                    done.add(task.key)
+                    yield _outcome(task, f)
+                    continue
+                while not started.empty():
+                    running.add(started.get())
+                if len(batch) == 1:  # alone in its pool: its own worker died
+                    yield task, None, "its worker process died while it ran (killed: out of memory?)"
+                    continue
+                if task.key in running or not running - done:  # (a worker that died starting: all suspect)
+                    deaths[task.key] = deaths.get(task.key, 0) + 1
+                (todo if deaths.get(task.key, 0) < WORKER_DEATHS_PER_RUN else alone).append(task)
+        except BaseException:  # Ctrl-C: stop now, the finished rows are already written
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                p.terminate()
+            raise
+        pool.shutdown()
 
 
 DASK_CONNECT_TIMEOUT_S = 15

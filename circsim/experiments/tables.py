@@ -12,7 +12,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import statistics
 from pathlib import Path
 
@@ -100,11 +99,13 @@ def write_tables(rows: list[dict], summary: list[dict], out: Path) -> list[Path]
         import pyarrow.parquet as pq
     except ImportError:
         return paths
+    from merger.io.mapio import write_files
+
     cols = _columns(rows)
     table = pa.Table.from_pylist([{c: r.get(c) for c in cols} for r in rows])
-    tmp = out / f".{RUNS_PARQUET}.part"
-    pq.write_table(table, tmp)
-    os.replace(tmp, out / RUNS_PARQUET)
+    buf = pa.BufferOutputStream()  # in memory, then written as every table: a full disk names the file
+    pq.write_table(table, buf)
+    write_files({out / RUNS_PARQUET: buf.getvalue().to_pybytes()})
     paths.append(out / RUNS_PARQUET)
     return paths
 

@@ -110,6 +110,7 @@ from .entities import (
     split_geometry,
     to_frame,
 )
+from .parts import claim_part, release
 from .viewer import has_display, rerun_executable
 
 APP_ID = "circsim"
@@ -184,6 +185,7 @@ class RerunRecorder(Observer):
             raise ValueError(f"scan_log_hz must be > 0, got {scan_log_hz}")
         self.path = None if path is None else str(path)
         self.part: str | None = None  # the temporary file the recording is written to, renamed at the end
+        self._part_fd: int | None = None  # held open while the part is ours: its lock (circsim.record.parts)
         self.stuck = False  # rerun blocked for good starting or closing the file (the process must not wait for it)
         self.write_error: str | None = None  # why the recording could not be completed (one line), if so
         self.spawn = spawn
@@ -364,6 +366,8 @@ class RerunRecorder(Observer):
                 return
             self._place_recording()
         finally:
+            release(self._part_fd)
+            self._part_fd = None
             if main:
                 signal.signal(signal.SIGINT, old)
 
@@ -399,11 +403,7 @@ class RerunRecorder(Observer):
         if self.spawn:  # the bundled viewer: rr.spawn alone searches $PATH, which may lack the venv
             rr.spawn(port=VIEWER_PORT, connect=False, recording=rec, executable_path=rerun_executable())
         if self.path:  # written to a temporary file beside it, renamed when complete (close)
-            import tempfile
-
-            target = Path(self.path)
-            fd, self.part = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part.rrd", dir=target.parent)
-            os.close(fd)
+            self.part, self._part_fd = claim_part(self.path)  # a killed run's stale parts removed first
         def attach():
             if self.spawn and self.path:
                 rec.set_sinks(rr.FileSink(self.part), rr.GrpcSink(url), default_blueprint=bp)
@@ -420,12 +420,14 @@ class RerunRecorder(Observer):
             if self.part:
                 os.unlink(self.part)
                 self.part = None
+            release(self._part_fd)
             raise RecordingError(f"{self.path}: cannot write the recording (rerun's file writer stopped; a full "
                                  "disk?)") from None
         except RuntimeError as e:  # e.g. "Failed to write: No space left on device"
             if self.part:
                 os.unlink(self.part)
                 self.part = None
+            release(self._part_fd)
             self.rec = None
             try:
                 rec.disconnect()  # drop what the stream buffered (no warning about it at exit)

@@ -19,12 +19,19 @@ _INSIDE = threading.local()
 
 
 def threads() -> int:
-    """The pool's size: ``MERGER_THREADS`` if set (≥ 1), else the machine's cores."""
+    """The pool's size: ``MERGER_THREADS`` if set (an integer ≥ 1), else the machine's cores. Anything else
+    set (``abc``, ``0``, ``-2``) raises ValueError: both command lines check it before any work."""
+    text = os.environ.get("MERGER_THREADS", "").strip()
+    if not text:
+        return os.cpu_count() or 1
     try:
-        n = int(os.environ.get("MERGER_THREADS", "0"))
+        n = int(text)
     except ValueError:
         n = 0
-    return n if n >= 1 else (os.cpu_count() or 1)
+    if n < 1:
+        raise ValueError(f"MERGER_THREADS={text!r}: expected an integer >= 1 (threads per merge cycle; unset: "
+                         "one per core)")
+    return n
 
 
 def _pool() -> ThreadPoolExecutor:

@@ -278,3 +278,38 @@ def test_sweep_plot_x_axis_is_the_swept_key(tmp_path):
     for x_key, lines in (("merger.method", ["network.latency_s"]), ("network.latency_s", ["merger.method"])):
         p = plot_sweep(rows, lines, tmp_path / f"{x_key}.png", title="t", x_key=x_key)
         assert p.read_bytes()[:4] == b"\x89PNG"
+
+
+def _die_in(task):
+    """A run for test_a_killed_worker_...: the tasks named in ``task.die`` kill their own worker process
+    (as the OOM killer would) on every attempt, or on the first only (``task.once``, a marker file)."""
+    import os
+    import signal
+    import time
+    from pathlib import Path
+
+    time.sleep(0.05 * task.n)
+    if task.key in task.die:
+        marker = Path(task.marker_dir) / task.key
+        if not (task.once and marker.exists()):
+            marker.touch()
+            os.kill(os.getpid(), signal.SIGKILL)
+    return {"key": task.key}
+
+
+@pytest.mark.parametrize("once", [True, False])
+def test_a_killed_worker_fails_only_its_own_run(tmp_path, once):
+    """One SIGKILLed worker broke the whole process pool: every run still queued in it failed (issue 37).
+    Now the runs it took down go to a new pool; a run that kills its worker every time is failed alone."""
+    from types import SimpleNamespace
+
+    from circsim.experiments.sweep import _local
+
+    tasks = [SimpleNamespace(key=f"r{n}", n=n, die={"r2"}, once=once, marker_dir=str(tmp_path)) for n in range(8)]
+    outcomes = {t.key: (row, err) for t, row, err in _local(tasks, 2, fn=_die_in)}
+    assert sorted(outcomes) == [t.key for t in tasks]
+    for key, (row, err) in outcomes.items():
+        if key == "r2" and not once:
+            assert row is None and "worker process died" in err
+        else:
+            assert row == {"key": key} and err is None, (key, err)

@@ -8,7 +8,7 @@ import pytest
 from merger.caches import clear_all
 from merger.synthetic import window_case
 from merger.team.orders import MapInput, MergeParams, merge_team
-from merger.team.pool import parallel_map
+from merger.team.pool import parallel_map, threads
 from merger.team.tree import merge_tree
 
 
@@ -21,6 +21,22 @@ def _maps():
         else:
             out.append(MapInput("CDE"[k], c.moving, c.center_moving))
     return out
+
+
+@pytest.mark.parametrize("text, n", [("3", 3), (" 2 ", 2), ("", None)])
+def test_merger_threads_is_an_integer_or_unset(monkeypatch, text, n):
+    import os
+
+    monkeypatch.setenv("MERGER_THREADS", text)
+    assert threads() == (n or os.cpu_count() or 1)
+
+
+@pytest.mark.parametrize("text", ["abc", "0", "-2", "1.5"])
+def test_merger_threads_that_is_not_a_count_is_refused(monkeypatch, text):
+    """``MERGER_THREADS=abc`` silently meant every core (issue 37); the CLIs turn this into exit 2."""
+    monkeypatch.setenv("MERGER_THREADS", text)
+    with pytest.raises(ValueError, match="MERGER_THREADS=.*expected an integer >= 1"):
+        threads()
 
 
 def test_parallel_map_keeps_the_order_and_reraises():

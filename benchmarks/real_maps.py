@@ -10,16 +10,15 @@ Cases and their truth: :mod:`tests.realdata` (shared with the tests that need th
 Each case is merged as a two-map team (:func:`merger.merge_team`, default parameters unless set) and
 scored against the truth: *correct* = θ within 3° and the true center placed within 0.5 m. It prints
 correct-accepted / false (accepted, not correct) / refused (split by whether the refused answer was
-right) and the median and worst wall times; the same figures for a feature-matching baseline (ORB
-features, RANSAC similarity fit and the confidence rule of OpenCV's stitching / ROS m-explore's
-map_merge, which the ROS ecosystem ships for maps without a common center).
+right) and the median and worst wall times; the same figures for the feature-matching baseline, ``merger.algorithms.features``
+(ORB features, RANSAC similarity fit and the confidence rule of ROS m-explore's map_merge, which the
+ROS ecosystem ships for maps without a common center).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from dataclasses import replace
@@ -31,7 +30,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from merger import MapInput, MergeParams, merge_team  # noqa: E402
-from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid  # noqa: E402
+from merger.grid import FREE_S, OCCUPIED_S  # noqa: E402
 from merger.search import angle_diff_deg  # noqa: E402
 from merger.team.orders import Warps  # noqa: E402
 from merger.transform import overlap, rotation  # noqa: E402
@@ -81,44 +80,20 @@ def probe(case: Case, theta, t, radii=(0, 1, 2, 3)):
 
 
 # ------------------------------------------------------------------------------------------ feature baseline
-ORB_FEATURES = 1500
-MATCH_RATIO = 0.7  # OpenCV stitching's BestOf2NearestMatcher: match_conf 0.3 → ratio 1 − 0.3
-CONFIDENCE_MIN = 1.0  # m-explore map_merge's estimation_confidence default
-
-
-def _image(g: OccupancyGrid) -> np.ndarray:
-    """The grid as m-explore hands it to OpenCV: occupied 100, free 0, unknown 255 (int8 −1 as uint8)."""
-    return np.choose(g.states, [255, 0, 100]).astype(np.uint8)
-
-
 def feature_match(case: Case):
-    """(accepted, θ, where the true moving center lands − c_ref) of an ORB + RANSAC similarity fit with the
-    stitching confidence inliers / (8 + 0.3 · matches) ≥ 1 (ROS m-explore map_merge's rule)."""
-    ref, mov = grid(case.ref), grid(case.mov)
-    orb = cv2.ORB_create(ORB_FEATURES)
-    k1, d1 = orb.detectAndCompute(_image(mov), None)
-    k2, d2 = orb.detectAndCompute(_image(ref), None)
-    if d1 is None or d2 is None or len(k1) < 3 or len(k2) < 3:
+    """(accepted, θ, where the true moving center lands − c_ref) of the ``features`` algorithm
+    (:mod:`merger.algorithms.features`: ROS m-explore map_merge's ORB / RANSAC pipeline and its
+    confidence rule inliers / (8 + 0.3 · matches) ≥ 1)."""
+    from merger.algorithms.features import align
+
+    a = align(MapInput("ref", grid(case.ref), case.c_ref), MapInput("mov", grid(case.mov), case.c_mov))
+    if a.theta_deg is None:
         return False, None, None
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(d1, d2, k=2)
-    good = [m[0] for m in pairs if len(m) == 2 and m[0].distance < MATCH_RATIO * m[1].distance]
-    if len(good) < 3:
-        return False, None, None
-    src = np.float32([k1[m.queryIdx].pt for m in good])
-    dst = np.float32([k2[m.trainIdx].pt for m in good])
-    a, inl = cv2.estimateAffinePartial2D(src, dst, method=cv2.RANSAC, ransacReprojThreshold=3.0)
-    if a is None:
-        return False, None, None
-    conf = int(inl.sum()) / (8 + 0.3 * len(good))
-    theta = math.degrees(math.atan2(a[1, 0], a[0, 0])) % 360.0  # rows grow with y: no flip, same angle
     if case.truth is None:
-        return conf >= CONFIDENCE_MIN, theta, None
-    e = rotation(-case.truth[0]) @ np.asarray(case.truth[1])  # the center error
-    cm = np.asarray(case.c_mov) - e  # the true moving center, world
-    px = (cm - np.asarray(mov.origin)) / mov.resolution - 0.5
-    q = a[:, :2] @ px + a[:, 2]
-    landed = np.asarray(ref.origin) + (q + 0.5) * ref.resolution
-    return conf >= CONFIDENCE_MIN, theta, float(np.hypot(*(landed - np.asarray(case.c_ref))))
+        return a.accepted, a.theta_deg, None
+    th, tt = case.truth  # where the true moving center lands, against c_ref (as tests.realdata.correct)
+    off = np.asarray(a.translation_m) - rotation(a.theta_deg) @ (rotation(-th) @ np.asarray(tt, np.float64))
+    return a.accepted, a.theta_deg, float(np.hypot(*off))
 
 
 def run_case(case: Case, params: MergeParams, probes: bool):

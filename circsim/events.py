@@ -51,6 +51,8 @@ class MergeCycle:
         SLAMs' pose estimates when the held maps were published, :func:`circsim.sim.estimated_truth`). A
         placement wrong against the start frames but right here is limited by the SLAM's drift, not the
         merger's.
+    map_stamps : per map held, its stamp (the version merged): a map version's latency to its first
+        accepted merge is the cycle's time minus it (``RunResult.latency_s``).
     """
 
     t: float
@@ -72,6 +74,7 @@ class MergeCycle:
     est_angle_error_deg: dict[str, float] = field(default_factory=dict)
     est_translation_error_m: dict[str, float] = field(default_factory=dict)
     est_correct: bool = True
+    map_stamps: dict[str, float] = field(default_factory=dict)  # the stamp of every map held (its version)
 
 
 class Observer:

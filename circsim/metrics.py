@@ -155,6 +155,9 @@ class RunResult:
     consensus_final: bool = False
     consensus_held_s: float = 0.0
     false_merge_log: list = field(default_factory=list)  # one dict per false merge (see the module doc)
+    latency_s: list = field(default_factory=list)  # per map version: its first accepted merge's time − its stamp
+    placement_jumps: list = field(default_factory=list)  # [Δθ°, Δt m] of a teammate between held alignments
+    tracking: dict = field(default_factory=dict)  # per robot, per pair: merger.team.track.Tracker.stats()
 
     @property
     def false_merges(self) -> int:
@@ -198,7 +201,38 @@ class RunResult:
             "all_merged": self.all_merged(), "outputs": self.outputs,
             "consensus_s": self.consensus_s, "consensus_final": self.consensus_final,
             "consensus_held_s": self.consensus_held_s,
+            "latency_s": _quantiles(self.latency_s), "placement_jump": self.jump_summary(),
+            "tracking": self.tracking_summary(),
         }
+
+    def jump_summary(self) -> dict:
+        """How far a teammate's placement moved between consecutive alignments a robot held: p95 and
+        largest, angle (°) and translation (m), over every robot and teammate."""
+        j = np.asarray(self.placement_jumps, np.float64).reshape(-1, 2)
+        if not len(j):
+            return {"count": 0, "deg_p95": None, "m_p95": None, "deg_max": None, "m_max": None}
+        return {"count": int(len(j)), "deg_p95": float(np.percentile(j[:, 0], 95)),
+                "m_p95": float(np.percentile(j[:, 1], 95)), "deg_max": float(j[:, 0].max()),
+                "m_max": float(j[:, 1].max())}
+
+    def tracking_summary(self) -> dict:
+        """The tracker's work (``merger.research: on_change``): per robot and pair the global searches it
+        used, its local re-verifications and switches (a pair's global search is computed once for the
+        team and counted for every robot that used it), and the totals."""
+        tot = {"global_searches": 0, "local_checks": 0, "switches": 0}
+        for pairs in self.tracking.values():
+            for s in pairs.values():
+                for k in tot:
+                    tot[k] += s[k]
+        return {**tot, "per_robot": self.tracking}
+
+
+def _quantiles(values) -> dict:
+    if not len(values):
+        return {"count": 0, "median": None, "p95": None, "max": None}
+    a = np.asarray(values, np.float64)
+    return {"count": int(a.size), "median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
+            "max": float(a.max())}
 
 
 def false_merge_kind(cycle: MergeCycle) -> str:
@@ -294,6 +328,7 @@ class MetricsObserver(Observer):
         self._arc_of = arc_of  # (robot, t) -> degrees travelled
         self.cell_m = float(cell_m)
         self.held: dict[str, dict[str, Placement]] = {}  # per robot, the placements of the alignment it holds
+        self._merged_versions: set = set()  # (robot, map, stamp) already merged: latency counted once
         self._agree_since: float | None = None  # when the current consensus began (None: none now)
         self._next_sample_s: float | None = None  # the next whole second of the SLAM pose error
 
@@ -320,7 +355,18 @@ class MetricsObserver(Observer):
         c = cycle.result.chosen
         if c is None:
             return
-        self.held[cycle.robot] = {k: (c.theta_deg[k], c.translation(k)) for k in c.theta_deg}
+        before = self.held.get(cycle.robot, {})
+        now = {k: (c.theta_deg[k], c.translation(k)) for k in c.theta_deg}
+        for k, p in now.items():
+            if k != cycle.robot and k in before:
+                q = before[k]
+                self.result.placement_jumps.append([abs(float(angle_diff_deg(p[0], q[0]))),
+                                                    math.hypot(p[1][0] - q[1][0], p[1][1] - q[1][1])])
+            stamp = cycle.map_stamps.get(k)
+            if stamp is not None and (cycle.robot, k, stamp) not in self._merged_versions:
+                self._merged_versions.add((cycle.robot, k, stamp))
+                self.result.latency_s.append(cycle.t - stamp)
+        self.held[cycle.robot] = now
         agree = in_consensus(self.held, self.result.robots, tol_m=self.cell_m)
         self.result.consensus_final = agree
         if agree and self.result.consensus_s is None:

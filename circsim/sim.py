@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from merger.algorithms.online import make_merger
 from merger.team.memo import Memo
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams
@@ -86,7 +87,9 @@ def merge_params(sc: Scenario) -> MergeParams:
                        nu_min=m.nu_min, min_support=m.min_support, score_min=m.score_min, window_m=m.window_m,
                        refine=m.refine, ambiguity_margin=m.ambiguity_margin,
                        combine_orders=m.combine_orders, roi_min_support=m.roi_min_support,
-                       tolerance_m=m.tolerance_m, contrast_min=m.contrast_min)
+                       tolerance_m=m.tolerance_m, contrast_min=m.contrast_min, refine_whole=m.refine_whole,
+                       research=m.research, research_period_s=m.research_period_s,
+                       research_change=m.research_change, research_drop=m.research_drop)
 
 
 def truth_translation(theta_deg: float, e_i, e_j) -> tuple[float, float]:
@@ -161,8 +164,8 @@ class Simulation:
             c_true = tuple(float(v) for v in slam.true_to_map(np.array(self.center_world)))
             c_given = (c_true[0] + errors[n][0], c_true[1] + errors[n][1])
             phase = float(phase_rng.uniform(0.0, sc.slam.publish_period_s))
-            tm = TeamMerger(n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps,
-                            strategy=sc.merger.strategy, memo=self.memo)
+            tm = make_merger(sc.merger.algorithm, n, tuple(self.robot_names), params, min_maps=sc.merger.min_maps,
+                             strategy=sc.merger.strategy, memo=self.memo)
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase)
@@ -307,7 +310,11 @@ class Simulation:
                                                 first_pair_correct=first_pair,
                                                 teammates_placed=r.teammates_placed, adopted_from=adopted_from,
                                                 est_truth_deg=est_truth, est_angle_error_deg=est_errors,
-                                                est_translation_error_m=est_t_errors, est_correct=est_correct))
+                                                est_translation_error_m=est_t_errors, est_correct=est_correct,
+                                                map_stamps={k: r.merger.maps[k].stamp for k in held}))
+        tracker = r.merger.tracker
+        for when, text in tracker.take_events() if tracker is not None else ():
+            self._emit("on_event", t, "info", f"{r.name}: {text} at {when:.1f} s")
         if self.result.consensus_s == t and not self._consensus_told:
             self._consensus_told = True
             self._emit("on_event", t, "info", f"CONSENSUS: every robot holds the same global alignment (within "
@@ -343,6 +350,8 @@ class Simulation:
                 self._cycles_thread.shutdown(wait=True)
                 self._cycles_thread = None
             self.result.wall_s = time.perf_counter() - t0
+        self.result.tracking = {n: r.merger.tracker.stats() for n, r in self.robots.items()
+                                if r.merger.tracker is not None}
         self._emit("on_end", self.result)
         return self.result
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import align
+from .algorithms import ALGORITHMS
 from .io.mapio import (
     CENTERS_FILE,
     MAX_MAP_CELLS,
@@ -195,6 +196,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="common center X,Y: once for all maps, or once per map in order")
     m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
     m.add_argument("--force", action="store_true", help="write the best hypothesis even if verification rejects it")
+    m.add_argument("--algorithm", choices=ALGORITHMS, default="thesis",
+                   help="thesis (default): the search about the common center, verified; features: ROS m-explore "
+                        "map_merge's ORB/RANSAC pipeline; hough: Carpin's Hough-spectrum merging (both use no "
+                        "center, and only --min-support of the options: merger.algorithms)")
     add_merge_options(m)
     d = sub.add_parser("demo", help="three robots' partial maps of a generated scene (or of a saved map, "
                                      "--real), saved and merged")
@@ -419,6 +424,9 @@ def evidence_text(v, label: str = "") -> str:
 
 def rule_of(checks) -> str:
     """The verification rule the checks ran: "contrast" when they carry contrast evidence, else "whole-map ν"."""
+    checks = list(checks)
+    if not checks:
+        return "the algorithm's own rule (merger.algorithms)"
     return "contrast" if any(v.contrast is not None for v in checks) else "whole-map ν"
 
 
@@ -552,9 +560,14 @@ def cmd_merge(args) -> int:
         for note in notes:
             print(f"note: {note}")
     # two maps: the second searched onto the first, as `merger align FIRST SECOND` does (same checks, same answer)
-    res = merge_team(maps, params, orders=[(0, 1)] if len(maps) == 2 else None)
+    if args.algorithm == "thesis":
+        res = merge_team(maps, params, orders=[(0, 1)] if len(maps) == 2 else None)
+    else:
+        from .algorithms import merge_every_map
+
+        res = merge_every_map(args.algorithm, maps, params)
     report_merge(res, args.json, {"resampled": notes})
-    written = write_merge(res, maps, out, args.force)
+    written = write_merge(res, maps, out, args.force and all(m.name in res.top.theta_deg for m in maps))
     if not args.json:
         print("wrote " + ", ".join(map(str, written)) if written else
               f"nothing written (rejected by {RULE_NAMES[res.rule]}; --force writes the best hypothesis)")

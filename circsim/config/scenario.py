@@ -38,8 +38,16 @@ from merger.limits import (
     one_line,
     read_input,
 )
+from merger.algorithms import ALGORITHMS
 from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
 from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
+from merger.team.track import (
+    RESEARCH_CHANGE,
+    RESEARCH_DEFAULT,
+    RESEARCH_DROP,
+    RESEARCH_MODES,
+    RESEARCH_PERIOD_S,
+)
 
 from .geometry import check_geometry
 from .types import (
@@ -111,15 +119,29 @@ class MergerSettings:
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
         holds, a partial team; null, the default, or more than the team: only with every teammate's map,
         as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
+    algorithm : "thesis" (default: the search about the common center, verified), "features" (ROS
+        m-explore map_merge's ORB / RANSAC pipeline) or "hough" (Carpin's Hough-spectrum merging): the
+        merging method (:mod:`merger.algorithms`; the other merger keys apply to "thesis").
     strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
         thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
         the team assembled along a maximum spanning tree of the verified pairs).
     roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
         below it scores 0, so no optimum rests on a handful of cells (``merger.MergeParams.roi_min_support``;
         0: the thesis's measure as defined).
+    verification : "auto" (default: a pair passes when "whole_map" or "contrast" passes it), "whole_map"
+        (the thesis: ω̃ ≥ ``nu_min`` on ``min_support`` cells; the thesis scenes pin it), "contrast" or
+        "roi_score" (``merger.MergeParams.verification``; docs/merging-real-maps.md).
+    refine_whole : the accepted placements refined on the whole maps and the merged map drawn there
+        (``merger.MergeParams.refine_whole``; the thesis scenes pin it off).
     tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
         agree, and the placement's whole-map fit must stand this many times above its best rival
         (``merger.MergeParams``; :mod:`merger.team.evidence`).
+    research : "on_change" (default) — a pair (or, with the orders strategy, the team's hypothesis) that
+        holds an accepted answer is re-verified at each new map version by an exact local search about it,
+        and searched globally only when that fails, its ν falls more than ``research_drop`` below the last
+        global search's, a map's ROI changed by more than ``research_change`` (fraction of its known cells)
+        since then, or ``research_period_s`` (default 10 s) passed; "every_version" — every map version
+        is searched globally, the thesis's behaviour (the thesis scenes pin it). ``merger.team.track``.
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.team.shared`). Off (default): every
@@ -129,7 +151,7 @@ class MergerSettings:
     roi_m: float = 8.0
     measure: str = "similarity"
     method: str = "fast"  # same answer as "reference" (property-tested; benchmarks/agree_search.py)
-    verification: str = "whole_map"
+    verification: str = "auto"
     nu_min: float = 0.5
     min_support: int = 200
     roi_min_support: int = ROI_MIN_SUPPORT
@@ -138,13 +160,19 @@ class MergerSettings:
     score_min: float = 0.5
     window_m: float = 0.5
     refine: bool = True
+    refine_whole: bool = True
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
     ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
     combine_orders: bool = True
     min_maps: int | None = None
     strategy: str = "auto"
+    algorithm: str = "thesis"
     share_hypotheses: bool = False
+    research: str = RESEARCH_DEFAULT
+    research_period_s: float = RESEARCH_PERIOD_S
+    research_change: float = RESEARCH_CHANGE
+    research_drop: float = RESEARCH_DROP
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -338,13 +366,15 @@ NETWORK_SCHEMA = section(NetworkConfig, {"period_s": POSITIVE, "latency_s": NON_
                                    "loss": number(ge=0, lt=1)})
 MERGER_SCHEMA = section(MergerSettings, {
     "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
-    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("whole_map", "roi_score", "contrast"),
+    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("auto", "whole_map", "roi_score", "contrast"),
     "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
     "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
-    "window_m": NON_NEGATIVE, "refine": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
+    "window_m": NON_NEGATIVE, "refine": boolean, "refine_whole": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
     "combine_orders": boolean,
     "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
-    "strategy": choice("auto", "orders", "tree"), "share_hypotheses": boolean})
+    "strategy": choice("auto", "orders", "tree"), "algorithm": choice(*ALGORITHMS), "share_hypotheses": boolean,
+    "research": choice(*RESEARCH_MODES), "research_period_s": number(gt=0, le=1e6),
+    "research_change": number(ge=0, le=1), "research_drop": number(ge=0, le=2)})
 OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITIVE, "json": optional_path,
                                "merged_log_period_s": optional(NON_NEGATIVE)})
 TOP_KEYS = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",

@@ -23,6 +23,8 @@ from ..grid import OccupancyGrid
 from .memo import Memo
 from .orders import MapInput, MergeParams, TeamMergeResult, merge_team
 from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
+from .follow import merge_team_tracked
+from .track import Tracker
 from .tree import merge_tree
 
 STRATEGIES = ("auto", "orders", "tree")
@@ -76,6 +78,7 @@ class TeamMerger:
     adopted: int = 0  # received hypotheses adopted
     _pairs: dict = field(default_factory=dict, repr=False)
     memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.team.memo)
+    tracker: Tracker | None = field(default=None, repr=False)  # research "on_change": merger.team.track
 
     def __post_init__(self) -> None:
         self.team = tuple(self.team)
@@ -86,6 +89,8 @@ class TeamMerger:
         if self.strategy not in STRATEGIES:
             raise ValueError(f"strategy must be one of {STRATEGIES}, got {self.strategy!r}")
         self.strategy = resolve_strategy(self.strategy, len(self.team))
+        if self.tracker is None and self.params.research == "on_change":
+            self.tracker = Tracker.from_params(self.params)
 
     def receive(self, msg: MapMessage) -> bool:
         """Store a map; an older stamp than the one held (out-of-order delivery) is dropped."""
@@ -110,8 +115,15 @@ class TeamMerger:
         """Run a merge cycle over the held maps; keep its alignment if it is accepted."""
         if not self.ready():
             raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
-        merge = merge_tree if self.strategy == "tree" else merge_team
-        result = merge(self.inputs(), self.params, reuse=self._pairs if self.reuse else None, memo=self.memo)
+        clock = float(self.cycles) if now is None else float(now)  # without a clock: a second per cycle
+        reuse = self._pairs if self.reuse else None
+        if self.strategy == "tree":
+            result = merge_tree(self.inputs(), self.params, reuse=reuse, memo=self.memo, tracker=self.tracker,
+                                now=clock)
+        elif self.tracker is not None:
+            result = merge_team_tracked(self.inputs(), self.params, self.tracker, clock, reuse=reuse, memo=self.memo)
+        else:
+            result = merge_team(self.inputs(), self.params, reuse=reuse, memo=self.memo)
         self.cycles += 1
         if result.accepted:
             self.current = result

@@ -43,7 +43,8 @@ import numpy as np
 
 from ..grid import OccupancyGrid
 from ..search import Alignment, angle_diff_deg, search, wrap_deg
-from ..transform import overlap, rotation
+from ..search.local import local_search
+from ..transform import rotation
 from .ambiguity import PairAmbiguity, resolve
 from .memo import Memo, map_key
 from .orders import (
@@ -60,11 +61,13 @@ from .orders import (
     _pair_key,
     place_on_frame0,
     problem_for,
+    refine_chosen,
     shifted,
 )
 from .pool import parallel_map
 from .superpose import fuse
-from .verify import Verification, no_evidence, pairwise, verify, verify_contrast
+from .track import Tracker, decide
+from .verify import Verification, check_pair, no_evidence, pairwise
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,31 +93,37 @@ class PairResult:
                 "ambiguity": None if self.ambiguity is None else self.ambiguity.to_dict()}
 
 
-def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps) -> PairResult:
+def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps,
+                around: Alignment | None = None) -> PairResult:
     """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame; an
-    ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.team.ambiguity.resolve`)."""
+    ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.team.ambiguity.resolve`).
+    ``around``: an earlier answer of the pair — the search is then the exact local search about it
+    (:func:`merger.search.local.local_search`, the tracker's re-verification: no runner-up, no guard)."""
     label = f"{maps[i].name}|{maps[j].name}"
 
     def check(al: Alignment) -> Verification:
-        if params.verification == "contrast":
-            return verify_contrast(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m),
-                                   shifted(maps[i].center, al.translation_m), tolerance_m=params.tolerance_m,
-                                   contrast_min=params.contrast_min, min_support=params.min_support, label=label)
-        if params.verification == "whole_map":
-            a, b = overlap(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m))
-            return verify(a, b, nu_min=params.nu_min, min_support=params.min_support, label=label)
+        if params.verification != "roi_score":
+            return check_pair(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m),
+                              shifted(maps[i].center, al.translation_m), params, label)
         ok = al.score >= params.score_min
         return Verification(al.score, al.counts, ok, "" if ok else
                             f"score of {maps[j].name} = {al.score:.3f} < score_min {params.score_min:g}")
 
     prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
-    al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
+    if around is not None:
+        al, amb = local_search(prob, around.theta_grid_deg, around.cells), None
+    else:
+        al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
     ver = check(al)
     if not al.has_evidence:
         ver = Verification(ver.nu, ver.counts, False, no_evidence(al, params.roi_min_support, label))
     elif amb is not None and not amb.used:
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
+
+
+def _placement(p: PairResult) -> Placement:
+    return (float(p.alignment.theta_deg), (float(p.alignment.translation_m[0]), float(p.alignment.translation_m[1])))
 
 
 def spanning_tree(n: int, edges: dict[tuple[int, int], float]) -> list[tuple[int, int]]:
@@ -274,7 +283,8 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
 
 
 def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # noqa: B008 (frozen)
-               reuse: dict | None = None, memo: Memo | None = None) -> TeamMergeResult:
+               reuse: dict | None = None, memo: Memo | None = None, tracker: Tracker | None = None,
+               now: float = 0.0) -> TeamMergeResult:
     """Merge N ≥ 2 maps from verified pairs (see the module notes); results in the frame of ``maps[0]``.
 
     ``reuse`` (kept by the caller between cycles, e.g. :class:`merger.team.online.TeamMerger`): every pair's
@@ -283,7 +293,10 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     the tree edges' pair searches as (moving map, alignment) — every pair is searched with the map whose
     name comes first as the reference, in that map's frame, so every robot searches it alike — and its
     ``checks`` the placed pairs verified on map 0's frame. ``memo`` (:mod:`merger.team.memo`): pair results shared with the other robots of a simulation (the
-    result is the same; its ``charged_ms`` is the computing time of the pairs taken from the memo)."""
+    result is the same; its ``charged_ms`` is the computing time of the pairs taken from the memo).
+    ``tracker`` (:mod:`merger.team.track`, ``research: on_change``): a pair of new map versions is re-verified
+    about its tracked answer by the local search, and searched globally only when the tracker says so
+    (``now``: the caller's clock, seconds)."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
     t0 = time.perf_counter()
@@ -312,8 +325,43 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         return memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
                         lambda: pair_result(maps, r, m, params, warps))
 
+    def compute_local(r, m, around: Alignment):
+        if memo is None:
+            return pair_result(maps, r, m, params, warps, around)
+        return memo.get(("tree-pair-local", map_key(maps[r]), map_key(maps[m]), params, around.theta_grid_deg,
+                         around.cells), lambda: pair_result(maps, r, m, params, warps, around))
+
+    def tracked(task):
+        """The pair's result under the tracker (merger.team.track): local re-verification, global when due."""
+        _, r, m, _ = task
+        key, sub = f"{maps[r].name}|{maps[m].name}", (maps[r], maps[m])
+        tr = tracker.track(key)
+        local, local_ok = None, False
+        if tr.tracked is not None:
+            local = compute_local(r, m, tr.tracked.alignment)
+            local_ok = local.verification.passed and local.verification.nu >= tr.nu_ref - tracker.drop
+            if local_ok and not tracker.due(tr, sub, params.roi_m, now):
+                tr.locals += 1
+                tr.tracked, tr.placement = local, _placement(local)
+                out = local
+            else:
+                out = None
+        elif tr.last is not None and not tracker.due(tr, sub, params.roi_m, now):
+            return tr.last  # never verified: searched again when its maps change or the period ends
+        else:
+            out = None
+        if out is None:
+            glob = compute(task)
+            tracker.searched(tr, sub, params.roi_m, now)
+            out = decide(tracker, key, tr, local, local_ok, glob, glob.verification.passed, now, _placement,
+                         lambda p: p.verification.nu)
+        if out.verification.passed:
+            tracker.accepted(tr, _placement(out))
+        tr.last = out
+        return out
+
     # the pairs are independent: searched side by side (merger.team.pool; the same result on any schedule)
-    for (ij, _, _, key), hit in zip(todo, parallel_map(compute, todo), strict=True):
+    for (ij, _, _, key), hit in zip(todo, parallel_map(compute if tracker is None else tracked, todo), strict=True):
         if key is not None:
             reuse[key] = hit
         pairs[ij] = hit
@@ -348,12 +396,18 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if any(not pairs[ij].verification.passed for ij in linked):  # the fallback pair of an unlinked map 0
         failed += [pairs[ij].verification.reason for ij in linked if not pairs[ij].verification.passed]
     failed += inconsistent
+    if failed and tracker is not None:  # the local answers this refused cycle used are searched globally next
+        for ij, p in pairs.items():
+            if p.alignment.method.endswith("-local"):
+                tracker.track(f"{p.ref}|{p.moving}").recheck = "the team's assembly refused a cycle that used it"
     steps = tuple((p.moving, p.alignment) for p in (pairs[(min(a, b), max(a, b))] for a, b in links))
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
     chosen, merged, layers = (result, None, {}) if result.accepted and not guard else (None, None, {})
     if chosen is not None:
+        chosen, sub_place = refine_chosen(sub, sub_place, sw, params, chosen)
+        result = chosen
         lay = place_on_frame0(sub, sub_place, sw)
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(sub, lay, strict=True)}

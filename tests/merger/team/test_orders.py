@@ -115,7 +115,7 @@ def test_online_cycles_reuse_the_search_of_an_unchanged_pair_with_the_same_resul
     calls = []
     real_search = team.search
     monkeypatch.setattr(team, "search", lambda *a, **k: calls.append(1) or real_search(*a, **k))
-    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0))
+    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0, research="every_version"))
     for n, (g, c) in zip(names, maps, strict=True):
         tm.receive(MapMessage(n, 1.0, g, c))
     first = tm.cycle()

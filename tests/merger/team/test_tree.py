@@ -110,7 +110,7 @@ def test_tree_cycles_search_only_the_pairs_of_a_changed_map(monkeypatch):
     calls = []
     real = tree.search
     monkeypatch.setattr(tree, "search", lambda *a, **k: calls.append(1) or real(*a, **k))
-    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0), strategy="tree")
+    tm = TeamMerger("Lyon", tuple(names), MergeParams(roi_m=8.0, research="every_version"), strategy="tree")
     for n, (g, c) in zip(names, maps, strict=True):
         tm.receive(MapMessage(n, 1.0, g, c))
     first = tm.cycle()

@@ -1,0 +1,211 @@
+"""Online merging that follows its answers (issue 33): re-verify every map version, search globally when needed.
+
+With ``research: every_version`` (the thesis's behaviour) every new map version is searched globally. With
+``research: on_change`` (the default) a pair that holds an accepted answer is first *re-verified* at each
+new map version: an exact local search about the answer (:func:`merger.search.local.local_search`: a few
+degrees and cells around it, the same measure and refinement) and the whole-map verification. If that
+passes, and its ν has not fallen by more than ``research_drop`` below the ν of the last global search,
+it is the pair's answer. A global search runs instead (the first merge of a pair is always the global
+search's answer) when
+
+(a) the local answer fails verification, or its evidence falls by more than ``research_drop``;
+(b) either map's region of interest changed by more than ``research_change`` (the fraction of its known
+    cells whose state changed) since the pair's last global search;
+(c) the pair was last searched globally ``research_period_s`` or more ago (the staleness bound);
+(d) an earlier global search disagreed with the tracked answer (a candidate awaits confirmation), or
+    the team's assembly refused a cycle that used the local answer (the tree: an inconsistent loop, a
+    tree edge failing on map 0's frame): the pair's next version is searched globally.
+
+A pair without an accepted answer is searched again only on (b) or (c): failed candidates are not
+retried until their maps change (Swarm-SLAM, COVINS). A global answer that agrees with the tracked one
+(within 10° and 0.2 m) replaces it; one that disagrees while the tracked answer still verifies becomes a
+*candidate* and replaces it only when the next global search finds it again and it verifies with a
+higher ν than the tracked answer on the same maps (hysteresis: m-explore's map_merge overwrites its
+estimate with every new one and users see merged maps jump, hrnr/m-explore #22). A verified answer is
+never dropped because one global search failed. Anchors: Cartographer searches globally only for
+trajectories not connected within ``global_constraint_search_after_n_seconds`` = 10 s (our
+``research_period_s`` default) and otherwise matches locally from the current relative pose
+(``pose_graph.lua``, ``constraint_builder_2d.cc``).
+
+Times are the caller's clock (the simulation's seconds); without one, each cycle counts one second.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..grid import UNKNOWN_S
+from ..search import angle_diff_deg
+from ..transform import extract_roi, roi_cells
+
+RESEARCH_MODES = ("on_change", "every_version")
+RESEARCH_DEFAULT = "on_change"
+RESEARCH_PERIOD_S = 10.0  # Cartographer's global_constraint_search_after_n_seconds
+RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed since the last global search
+RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
+UNTRACKED_CHANGE_FACTOR = float(__import__("os").environ.get("UCF", "0.25"))  # a pair without an accepted answer is searched again at a quarter of research_change
+AGREE_DEG = 10.0  # two answers this close in angle and AGREE_M in translation are one hypothesis
+AGREE_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
+
+
+def roi_change(before: np.ndarray | None, now: np.ndarray) -> float:
+    """The fraction of the ROI's known cells (known in either) whose state differs (1 without ``before``)."""
+    if before is None or before.shape != now.shape:
+        return 1.0
+    known = (before != UNKNOWN_S) | (now != UNKNOWN_S)
+    n = int(known.sum())
+    return float((before != now).sum()) / n if n else 0.0
+
+
+def placement_jump(a, b) -> tuple[float, float]:
+    """(|Δθ|°, |Δt| m) between two placements (θ, (tx, ty)); of two team placements (map name → placement),
+    the largest over the maps both place (inf when they place different maps)."""
+    if isinstance(a, dict):
+        if set(a) != set(b):
+            return math.inf, math.inf
+        j = [placement_jump(a[k], b[k]) for k in a] or [(0.0, 0.0)]
+        return max(x[0] for x in j), max(x[1] for x in j)
+    return (abs(float(angle_diff_deg(a[0], b[0]))),
+            math.hypot(float(a[1][0]) - float(b[1][0]), float(a[1][1]) - float(b[1][1])))
+
+
+def agree(a, b) -> bool:
+    """Whether two placements (or team placements) are one hypothesis: within AGREE_DEG and AGREE_M."""
+    dth, dt = placement_jump(a, b)
+    return dth <= AGREE_DEG and dt <= AGREE_M
+
+
+@dataclass
+class Track:
+    """What the tracker knows of one pair (or of one robot's team hypothesis, with the orders strategy)."""
+
+    tracked: object = None  # the accepted answer followed (an Alignment, or a team hypothesis); None: none
+    placement: tuple | None = None  # its (θ, t)
+    nu_ref: float = 0.0  # ν (or mean ν) of the last global search that set or confirmed it
+    global_s: float = -math.inf  # when the last global search ran
+    rois: dict = field(default_factory=dict)  # map name → its ROI states at the last global search
+    candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
+    recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
+    last: object = None  # the last result (used again while nothing calls for a new global search)
+    last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
+    globals: int = 0
+    locals: int = 0
+    switches: int = 0
+    jumps: list = field(default_factory=list)  # (Δθ°, Δt m) between consecutive accepted answers
+
+
+@dataclass
+class Tracker:
+    """The tracks of one merging robot, keyed by pair ("A|B", the reference first) or "team"; its
+    settings; the events to tell (switches) and counters. Thread-safe for the pair updates of one cycle."""
+
+    period_s: float = RESEARCH_PERIOD_S
+    change: float = RESEARCH_CHANGE
+    drop: float = RESEARCH_DROP
+    tracks: dict = field(default_factory=dict)
+    events: list = field(default_factory=list)  # (time, text): taken by the caller (take_events)
+    _rois: dict = field(default_factory=dict, repr=False)  # (name, version, center, n) → ROI states
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @classmethod
+    def from_params(cls, params) -> Tracker:
+        return cls(params.research_period_s, params.research_change, params.research_drop)
+
+    def track(self, key: str) -> Track:
+        with self._lock:
+            return self.tracks.setdefault(key, Track())
+
+    def roi(self, m, roi_m: float) -> np.ndarray:
+        """Map input ``m``'s ROI states about its center (kept per map version)."""
+        n = roi_cells(roi_m, m.grid.resolution)
+        key = (m.name, m.version if m.version is not None else id(m.grid), tuple(m.center), n)
+        with self._lock:
+            hit = self._rois.get(key)
+        if hit is None:
+            hit = extract_roi(m.grid, m.center, n)
+            with self._lock:
+                if len(self._rois) > 256:
+                    self._rois.clear()
+                self._rois[key] = hit
+        return hit
+
+    def due(self, tr: Track, maps, roi_m: float, now: float) -> str:
+        """Why a global search is due for ``tr`` over ``maps`` ("" when none is): staleness, change, candidate.
+        A track without an accepted answer is due at a quarter of ``change`` (UNTRACKED_CHANGE_FACTOR)."""
+        change = self.change if tr.tracked is not None else self.change * UNTRACKED_CHANGE_FACTOR
+        if tr.candidate is not None:
+            return "a disagreeing global answer awaits confirmation"
+        if tr.recheck:
+            return tr.recheck
+        if now - tr.global_s >= self.period_s - 1e-9:
+            return f"last global search {now - tr.global_s:.1f} s ago (research_period_s {self.period_s:g})"
+        for m in maps:
+            c = roi_change(tr.rois.get(m.name), self.roi(m, roi_m))
+            if c > change:
+                return f"{m.name}'s ROI changed by {c:.1%} (more than {change:g})"
+        return ""
+
+    def searched(self, tr: Track, maps, roi_m: float, now: float) -> None:
+        """Record a global search of ``tr`` over ``maps`` at ``now``."""
+        tr.recheck = ""
+        tr.globals += 1
+        tr.global_s = now
+        tr.rois = {m.name: self.roi(m, roi_m) for m in maps}
+
+    def accepted(self, tr: Track, placement) -> None:
+        if tr.last_accepted is not None:
+            tr.jumps.append(placement_jump(tr.last_accepted, placement))
+        tr.last_accepted = placement
+
+    def switched(self, key: str, tr: Track, now: float, old, new) -> None:
+        tr.switches += 1
+        dth, dt = placement_jump(old, new)
+        with self._lock:
+            self.events.append((now, f"SWITCH {key}: a global search replaced the tracked answer "
+                                     f"(moved {dth:.1f}° / {dt:.2f} m)"))
+
+    def take_events(self) -> list:
+        with self._lock:
+            out, self.events = self.events, []
+        return out
+
+    def stats(self) -> dict:
+        """Per track: global searches, local re-verifications, switches and the jumps' largest and p95."""
+        out = {}
+        for k, tr in sorted(self.tracks.items()):
+            j = np.array(tr.jumps, np.float64).reshape(-1, 2)
+            out[k] = {"global_searches": tr.globals, "local_checks": tr.locals, "switches": tr.switches,
+                      "jumps": len(j),
+                      "jump_deg_p95": float(np.percentile(j[:, 0], 95)) if len(j) else None,
+                      "jump_m_p95": float(np.percentile(j[:, 1], 95)) if len(j) else None,
+                      "jump_deg_max": float(j[:, 0].max()) if len(j) else None,
+                      "jump_m_max": float(j[:, 1].max()) if len(j) else None}
+        return out
+
+
+def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, glob_ok: bool, now: float,
+           placement_of, nu_of):
+    """The answer of a cycle that ran a global search (``glob``, verified: ``glob_ok``) beside the local
+    re-verification (``local``, None when no answer was tracked; ``local_ok``): see the module notes.
+    Updates ``tr`` and returns the result to use. A tracked answer stays tracked (it is re-verified
+    locally at the next map version) when neither verifies now."""
+    if not glob_ok:
+        if local is not None and local_ok:  # never drop a verified answer because one search failed
+            tr.tracked, tr.placement, tr.candidate = local, placement_of(local), None
+            return local
+        return glob
+    g_place = placement_of(glob)
+    if local is not None and local_ok and not agree(g_place, tr.placement):
+        # the global answer disagrees and the tracked one still verifies: hysteresis
+        if not (tr.candidate is not None and agree(g_place, tr.candidate) and nu_of(glob) > nu_of(local)):
+            tr.candidate = g_place
+            tr.tracked, tr.placement = local, placement_of(local)
+            return local
+    if tr.placement is not None and not agree(g_place, tr.placement):
+        tracker.switched(key, tr, now, tr.placement, g_place)
+    tr.tracked, tr.placement, tr.nu_ref, tr.candidate = glob, g_place, nu_of(glob), None
+    return glob

@@ -57,14 +57,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the run as a ROS 2 bag (folder OUT, MCAP): every robot's map, scans, odometry and "
                         "tf, with the ground truth and the bench's merges beside (OUT/circsim_truth.yaml, "
                         "OUT/circsim_merges.csv; `circsim score`); needs pip install -e \".[ros]\"")
-    r.add_argument("--quiet", action="store_true", help="no progress bar (shown on a terminal only)")
+    r.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr (by default a bar on a terminal, else a line every 5 s of work)")
     sc = sub.add_parser("scenarios", help="list the bundled scenarios (--show NAME: one in full)")
     sc.add_argument("--show", metavar="SCENARIO", help="print a scenario (bundled name or file) with every key "
                                                        "and its value, defaults filled in, as YAML")
     sc.add_argument("--reference", action="store_true", help="print the scenario reference (every key, its "
                                                              "default and what is expected; docs/scenario-reference.md)")
     v = sub.add_parser("view", help="open a recorded run (.rrd) in the rerun viewer")
-    v.add_argument("rrd", type=Path)
+    v.add_argument("rrd", type=Path, help="a recording written by `circsim run --rrd RUN.rrd`")
     v.add_argument("--web", action="store_true", help="serve the web viewer on 127.0.0.1 instead")
     for register in extra_commands():
         register(sub)
@@ -98,7 +99,8 @@ def summary(res) -> str:
                      f"{r['rejected_correct']:>11}  {e}")
     mc = d["merge_cycle_ms"]
     lines += ["", f"false merges {d['false_merges']}   rejected correct {d['rejected_correct']}   "
-              + (f"merge cycle cost median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms ({mc['count']} cycles)"
+              + (f"merge cycle cost median {mc['median']:.1f} ms, p95 {mc['p95']:.1f} ms "
+                 f"({mc['count']} cycle{'' if mc['count'] == 1 else 's'})"
                  if mc["count"] else "no merge cycle")]
     lines += false_merge_lines(d) + slam_lines(d)
     cs = d.get("consensus_s")

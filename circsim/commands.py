@@ -57,22 +57,18 @@ def add_scenario_args(p: argparse.ArgumentParser) -> None:
                    help="override a scenario value, e.g. --set center_error.magnitude_m=0.1 (repeatable)")
 
 
-def show_progress(quiet: bool) -> bool:
-    """The one rule for progress bars (run, offline, calibrate, sweep): on a terminal only, never with
-    --quiet; piped or redirected output stays free of bar redraws."""
-    return not quiet and sys.stderr.isatty()
-
-
 def progress_observer(sc, quiet: bool):
+    """The run's progress on stderr (:func:`circsim.progress.progress_bar`: a bar on a terminal, a plain
+    line every few seconds otherwise), none with --quiet."""
     from .events import Observer
+    from .progress import progress_bar
 
-    if not show_progress(quiet):
+    if quiet:
         return None
-    from tqdm import tqdm
 
     class Progress(Observer):
         def __init__(self):
-            self.bar = tqdm(total=round(sc.duration_s, 1), unit="sim s", desc=sc.name, leave=False)
+            self.bar = progress_bar(round(sc.duration_s, 1), "sim s", sc.name, quiet=False, leave=False)
 
         def on_tick(self, t, step, ticks):
             self.bar.n = round(t, 1)

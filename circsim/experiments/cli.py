@@ -20,7 +20,8 @@ def _scenario_args(p) -> None:
     p.add_argument("--seed", type=int, help="base seed (default: the scenario's); seed i is base + i")
     p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
                    help="override a scenario value for every run (repeatable)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar (shown on a terminal only)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr (by default a bar on a terminal, else a line every 5 s of work)")
 
 
 # --- circsim offline ---------------------------------------------------------------------------------
@@ -101,18 +102,17 @@ def check_offline_args(args) -> None:
 
 
 def _offline(scenarios, settings, args) -> int:
-    from tqdm import tqdm
-
     from merger.io.mapio import save_map
 
-    from ..commands import interrupted_code, show_progress
+    from ..commands import interrupted_code
+    from ..progress import progress_bar
     from .offline import default_search_method, format_table, run_offline, summarize
 
     search = settings.search_method or default_search_method()
     out: Path | None = args.out
     seed_results, records_path = [], (out / "offline_records.jsonl") if out else None
     rec_file = open(records_path, "w") if records_path else None
-    bar = tqdm(total=len(scenarios), unit="scene·seed", disable=not show_progress(args.quiet), desc="offline")
+    bar = progress_bar(len(scenarios), "scene·seed", "offline", quiet=args.quiet)
     interrupted = False
     try:
         for sc in scenarios:
@@ -186,15 +186,14 @@ def _write_offline(out: Path, rows, seed_results, settings, search, args) -> Non
 
 
 def _calibrate(scenarios, settings, args) -> int:
-    from tqdm import tqdm
-
-    from ..commands import show_progress
+    from ..progress import progress_bar
     from .offline import calibrated_threshold, ncc_calibration_rows
 
     rows = []
-    for sc in tqdm(scenarios, unit="scene·seed", disable=not show_progress(args.quiet),
-                   desc="calibrate"):
-        rows += ncc_calibration_rows(sc, settings)
+    with progress_bar(len(scenarios), "scene·seed", "calibrate", quiet=args.quiet) as bar:
+        for sc in scenarios:
+            rows += ncc_calibration_rows(sc, settings)
+            bar.update(1)
     cal = calibrated_threshold(rows)
     print(f"NCC calibration over {len(scenarios)} scene·seeds, {cal['alignments']} alignments "
           f"({cal['wrong_best']} with a wrong best angle): highest score of a wrong rotation "
@@ -247,10 +246,10 @@ def cmd_sweep(args) -> int:
 
 
 def _sweep(args, base, axes, tasks) -> int:
-    from ..commands import begin_work, interrupted_code, show_progress
+    from ..commands import begin_work, interrupted_code
     from .store import check_sweep_outputs, prepare_out
     from .sweep import execute
-    from .tables import format_summary, summarize, sweep_rows, write_tables
+    from .tables import counted, format_summary, summarize, sweep_rows, write_tables
 
     check_sweep_outputs(args.out)
     todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
@@ -258,13 +257,15 @@ def _sweep(args, base, axes, tasks) -> int:
     if base.merger.method == "reference" and todo and not args.quiet:
         print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "
               "--set merger.method=fast is ~100x faster", file=sys.stderr)
-    where = f"dask {args.dask}" if args.dask else f"{args.workers or 'all'} local workers"
-    print(f"sweep {base.name}: {len(tasks)} runs ({len(tasks) // args.seeds} combinations × {args.seeds} seeds), "
+    where = (f"dask {args.dask}" if args.dask else counted(args.workers, "local worker") if args.workers
+             else "all local workers")
+    print(f"sweep {base.name}: {counted(len(tasks), 'run')} ({counted(len(tasks) // args.seeds, 'combination')} × "
+          f"{counted(args.seeds, 'seed')}), "
           f"{done} already done, {len(todo)} to run on {where}", file=sys.stderr)
     interrupted, failed = False, 0
     try:
         failed = execute(todo, args.out, workers=args.workers, dask_address=args.dask,
-                         progress=show_progress(args.quiet)).failed
+                         progress=not args.quiet).failed
     except KeyboardInterrupt:
         interrupted = True
     rows = sweep_rows(args.out, tasks)
@@ -284,7 +285,7 @@ def _sweep(args, base, axes, tasks) -> int:
               "(--resume continues)", file=sys.stderr)
         return interrupted_code()
     if failed:
-        print(f"circsim: {failed} runs failed (tracebacks in {args.out / 'errors.jsonl'}; --resume retries them)",
+        print(f"circsim: {counted(failed, 'run')} failed (tracebacks in {args.out / 'errors.jsonl'}; --resume retries them)",
               file=sys.stderr)
         return 1
     return 0

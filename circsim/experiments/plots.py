@@ -3,7 +3,9 @@ the first ``--grid`` key), one line per other setting; ticks at the swept values
 
 Each panel shows, per x value, the median over seeds and the interquartile band; the "every robot
 merged" panel shows the fraction of runs that did. Runs in which no robot merged have no first-merge
-figures (the first-merge panels average the robots that merged).
+figures (the first-merge panels average the robots that merged); a combination without data for a panel
+has no point there (never a 0). Lines have their own marker and a small x offset (:func:`dodge`): lines
+with equal values stay visible side by side.
 
 Axes are for reading at a glance: plain tick labels (``0.5``, ``2``, ``180``, never ``5.98×10⁻¹``),
 y from 0 (every panel is a non-negative quantity; a small margin keeps points at 0 visible), fractions on [0, 1], whole-number ticks for counts,
@@ -16,6 +18,8 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+
+from .tables import counted
 
 PANELS = (
     ("first_merge_s.mean", "first correct merge [s] (mean over robots)"),
@@ -45,6 +49,22 @@ def _band(values, fraction: bool = False):
         m = float(v.mean())
         return m, m, m
     return np.percentile(v, 25), np.median(v), np.percentile(v, 75)
+
+
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*")
+
+
+def marker(i: int) -> str:
+    """The marker of line ``i``: lines that coincide still show (each its own shape)."""
+    return MARKERS[i % len(MARKERS)]
+
+
+def dodge(i: int, n: int, xs) -> float:
+    """The x offset of line ``i`` of ``n`` at the values ``xs``: lines side by side within ±1.5 % of the span
+    of ``xs`` (of 1 for a single value), so equal values do not hide each other."""
+    xs = sorted(set(float(x) for x in xs))
+    span = (xs[-1] - xs[0]) if len(xs) > 1 else 1.0
+    return 0.0 if n < 2 else (i - (n - 1) / 2) * 0.03 * span / (n - 1)
 
 
 def _plain(v, _pos=None) -> str:
@@ -129,19 +149,20 @@ def sweep_figure(rows: list[dict], line_keys: list[str], *, title: str = "", x_k
     for ax, (metric, ylabel) in zip(axes.flat, PANELS, strict=True):
         top = None
         for k, (label, rs) in enumerate(sorted(lines.items())):
+            shift = dodge(k, len(lines), xs)
             pts = []
             for x in xs:
                 b = _band([float(r[metric]) if r.get(metric) is not None else None for r in rs
                            if xmap[json.dumps(r.get(x_key))] == x],
                           fraction=metric in FRACTIONS)
-                if b is not None:
-                    pts.append((x, *b))
+                if b is not None:  # no data (e.g. no correct hypothesis to reject): no point
+                    pts.append((x + shift, *b))
             if not pts:
                 continue
             x, lo, med, hi = zip(*pts, strict=True)
             top = max(top or 0.0, *map(float, hi), *map(float, med))
             colour = f"C{k % 10}"
-            ax.plot(x, med, "o-", color=colour, label=label)
+            ax.plot(x, med, marker=marker(k), ls="-", color=colour, label=label)
             ax.fill_between(x, lo, hi, color=colour, alpha=0.2, linewidth=0)
         if xs:
             ax.set_xlim(xs[0] - 0.06 * span, xs[-1] + 0.06 * span)
@@ -159,5 +180,5 @@ def sweep_figure(rows: list[dict], line_keys: list[str], *, title: str = "", x_k
     if handles:
         fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 4), fontsize=9)
     seeds = len({r["seed"] for r in rows})
-    fig.suptitle(f"{title}  (median and IQR over {seeds} seeds)".strip())
+    fig.suptitle(f"{title}  (median and IQR over {counted(seeds, 'seed')})".strip())
     return fig

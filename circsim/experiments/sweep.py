@@ -19,7 +19,8 @@ scenario's ``center_error.magnitude_m`` and ``network.latency_s``, every run par
 ``first_merge_arc_deg.<robot>``, ``first_merge_s.mean`` / ``first_merge_arc_deg.mean`` (over the
 robots that merged; ``robots_merged`` says how many), ``first_merge_s.max``, ``all_merged``,
 ``false_merges``, ``rejected_correct``, ``cycles``, ``rejected_correct_rate`` (= rejected_correct /
-cycles), ``merge_cycle_ms.median``, ``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
+cycles; null when no cycle's best hypothesis was correct), ``merge_cycle_ms.median``,
+``merge_cycle_ms.p95``, ``realtime_factor``, ``sim_s``,
 ``wall_s``, ``duration_s``, ``near_180_proposed``, ``near_180_accepted``, ``top_error_deg.median``,
 ``top_translation_error_m.median`` (see :class:`HypothesisStats`), ``final_angle_error_deg.<robot>`` /
 ``final_translation_error_m.<robot>`` (the largest error over that robot's teammates, of the alignment it
@@ -138,8 +139,11 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     for name, r in robots.items():
         row[f"first_merge_translation_error_m.{name}"] = r.get("first_merge_translation_error_m")
     cycles = sum(r["cycles"] for r in robots.values())
+    # a rate of refusing correct hypotheses needs one: no cycle's best hypothesis correct (none accepted
+    # correctly, none refused) is no data, not a rate of 0
+    correct = rec["rejected_correct"] + sum(r["accepted"] for r in robots.values()) - rec["false_merges"]
     row.update(false_merges=rec["false_merges"], rejected_correct=rec["rejected_correct"], cycles=cycles,
-               rejected_correct_rate=rec["rejected_correct"] / cycles if cycles else None)
+               rejected_correct_rate=rec["rejected_correct"] / cycles if cycles and correct > 0 else None)
     row["consensus_s"] = rec.get("consensus_s")
     row["consensus_final"] = rec.get("consensus_final")
     row["consensus_held_s"] = rec.get("consensus_held_s")
@@ -308,7 +312,7 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
     A run that raises is appended to ``out/errors.jsonl`` (key and traceback) and the sweep goes on;
     an interrupted run (Ctrl-C reached it) is not written. ``--resume`` runs both again.
     """
-    from tqdm import tqdm
+    from ..progress import progress_bar
 
     if not tasks:
         return Executed(0, 0)
@@ -318,7 +322,7 @@ def execute(tasks: list[RunTask], out: Path, *, workers: int | None = None, dask
     written = failed = 0
     f = None  # runs.jsonl is opened with the first row: a sweep that cannot start writes nothing
     try:
-        with tqdm(total=len(tasks), unit="run", desc="sweep", disable=not progress, smoothing=0.1) as bar:
+        with progress_bar(len(tasks), "run", "sweep", quiet=not progress, smoothing=0.1) as bar:
             for task, row, error in outcomes:
                 if error is not None:
                     failed += 1

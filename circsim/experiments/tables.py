@@ -20,6 +20,11 @@ from .plan import RUNS_CSV, RUNS_JSONL, RUNS_PARQUET, SUMMARY_CSV, Axis, RunTask
 from .store import read_rows
 
 
+def counted(n: int, singular: str, plural: str | None = None) -> str:
+    """``1 seed``, ``2 seeds``: a count with its noun in the right number."""
+    return f"{n} {singular if n == 1 else plural or singular + 's'}"
+
+
 # --- tables ----------------------------------------------------------------------------------------
 def sweep_rows(out: Path, tasks: list[RunTask]) -> list[dict]:
     """The rows of this sweep's tasks from the JSONL, in plan order (grid order, then seed)."""

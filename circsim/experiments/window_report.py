@@ -14,7 +14,8 @@ within 2° and 0.1 m), the median first-merge arc and its ratio to the exact-cen
 window, false merges, ~180° order hypotheses that passed verification / were chosen, the median merge
 cycle and realtime factor; and whether the issue's targets hold (W = 0.5 m for center errors ≤ 0.25 m,
 W = 1.0 m for ≤ 0.5 m: ≥ 95% of robot-runs merged, median arc ≤ 1.2× the exact-center median, 0 false
-merges everywhere).
+merges everywhere). No data is "—" in the table and no point in the plot (a cell where nothing merged
+has no final error, not one of 0 cm).
 """
 
 from __future__ import annotations
@@ -50,11 +51,24 @@ def summarize(rows: list[dict]) -> dict:
             "false": sum(r["false_merges"] for r in rs),
             "n180_verified": sum(r.get("near_180_accepted") or 0 for r in rs),
             "n180_chosen": sum(r.get("near_180_chosen") or 0 for r in rs),
-            "t_err_max": max((r.get("final_translation_error_m.max") or 0.0) for r in rs),
-            "cycle_ms": statistics.median(r["merge_cycle_ms.median"] for r in rs if r["merge_cycle_ms.median"]),
+            "t_err_max": _most([r.get("final_translation_error_m.max") for r in rs]),  # None: nothing merged
+            "cycle_ms": _median([r.get("merge_cycle_ms.median") for r in rs]),
             "rt": statistics.median(r["realtime_factor"] for r in rs),
         }
     return out
+
+
+def _most(xs):
+    known = [x for x in xs if x is not None]
+    return max(known) if known else None
+
+
+def _median(xs):
+    known = [x for x in xs if x]
+    return statistics.median(known) if known else None
+
+
+NONE = "—"  # no data (nothing merged, no cycle): never a 0 that reads as a measurement
 
 
 def table(s: dict) -> list[str]:
@@ -68,29 +82,36 @@ def table(s: dict) -> list[str]:
         if (w == 0.5 and e <= 0.25) or (w == 1.0 and e <= 0.5):
             ok = c["merged"] >= 0.95 * c["robot_runs"] and ratio is not None and ratio <= 1.2 and c["false"] == 0
             target = "met" if ok else "**missed**"
-        arc = f"{c['arc_median']:.1f}°" if c["arc_median"] is not None else "—"
+        arc = f"{c['arc_median']:.1f}°" if c["arc_median"] is not None else NONE
+        t_err = f"{100 * c['t_err_max']:.1f} cm" if c["t_err_max"] is not None else NONE
+        cycle = f"{c['cycle_ms']:.0f}" if c["cycle_ms"] is not None else NONE
         lines.append(f"| {scene} | {w:g} | {e:g} | {c['merged']}/{c['robot_runs']} | {arc} | "
-                     f"{f'{ratio:.2f}' if ratio else '—'} | {c['false']} | {c['n180_verified']} / {c['n180_chosen']} | "
-                     f"{100 * c['t_err_max']:.1f} cm | {c['cycle_ms']:.0f} | {c['rt']:.1f} | {target} |")
+                     f"{f'{ratio:.2f}' if ratio else NONE} | {c['false']} | {c['n180_verified']} / "
+                     f"{c['n180_chosen']} | {t_err} | {cycle} | {c['rt']:.1f} | {target} |")
     return lines
 
 
-def plot(s: dict, path: Path) -> None:
+def plot(s: dict, path: Path):
+    """The figure (matplotlib ``Figure``, returned) written to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .plots import dodge, marker
+
     scenes = sorted({k[0] for k in s})
     fig, axes = plt.subplots(2, len(scenes), figsize=(5.5 * len(scenes), 7), squeeze=False, sharex=True)
     for j, scene in enumerate(scenes):
-        for w in sorted({k[1] for k in s if k[0] == scene}):
-            ks = sorted(k for k in s if k[0] == scene and k[1] == w)
-            xs = [k[2] for k in ks]
-            axes[0][j].plot(xs, [100 * s[k]["merged"] / s[k]["robot_runs"] for k in ks], "o-", label=f"W = {w:g} m")
-            axes[1][j].plot(xs, [s[k]["arc_median"] if s[k]["arc_median"] is not None else float("nan")
-                                 for k in ks], "o-", label=f"W = {w:g} m")
+        windows = sorted({k[1] for k in s if k[0] == scene})
         errors = sorted({k[2] for k in s if k[0] == scene})
+        for i, w in enumerate(windows):  # markers and a small offset per window: equal lines both show
+            ks = sorted(k for k in s if k[0] == scene and k[1] == w)
+            xs = [k[2] + dodge(i, len(windows), errors) for k in ks]
+            style = dict(marker=marker(i), ls="-", label=f"W = {w:g} m")
+            axes[0][j].plot(xs, [100 * s[k]["merged"] / s[k]["robot_runs"] for k in ks], **style)
+            axes[1][j].plot(xs, [s[k]["arc_median"] if s[k]["arc_median"] is not None else float("nan")
+                                 for k in ks], **style)
         arcs = [c["arc_median"] for k, c in s.items() if k[0] == scene and c["arc_median"] is not None]
         axes[0][j].set_ylim(-3, 105)  # plain ranges: percentages on [0, 100], arcs from 0
         axes[1][j].set_ylim(0, 1.15 * max(arcs) if arcs else 1.0)
@@ -107,6 +128,7 @@ def plot(s: dict, path: Path) -> None:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
+    return fig
 
 
 def main(argv=None) -> int:

@@ -20,12 +20,10 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
-from merger.io.overlay import overlay_rgb
+from merger.io.overlay import PALETTE, overlay_rgb  # one palette: the overlays' and the recording's
 
 CROP_MARGIN_CELLS = 20  # logged maps and overlays: known cells plus 1 m at 5 cm
 GREY = (150, 150, 150)
-PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
-            (227, 119, 194), (188, 189, 34), (23, 190, 207)]  # matplotlib tab10 without its grey
 
 
 

@@ -1,8 +1,12 @@
-"""Colour overlay of aligned maps in the thesis's scheme (figure 3.15).
+"""Colour overlay of aligned maps (after the thesis's figure 3.15, in one qualitative palette).
 
-Each robot has its own colour pair: occupied darker, free lighter (Lyon: magenta / light green,
-Nevers: dark green / light red, Auckland: yellow / blue); a cell known to several robots shows the mean
-of their colours (so superpositions give other colours); grey where every robot is unknown.
+Each robot has one hue, by its place in the list of maps: matplotlib's tab10 (without its grey,
+:data:`PALETTE`), occupied in the full colour, free in the same hue lightened (:data:`FREE_LIGHTEN`
+of the way to white). A cell known to several robots shows the mean of their colours (so
+superpositions give other colours); grey where every robot is unknown. The rerun recording
+(``circsim.record``) draws each robot in the same colour. (The thesis paired unrelated hues — Lyon
+magenta occupied and light green free, Nevers dark green and light red, Auckland yellow and blue —
+which a reader could not tell apart by robot.)
 """
 
 from __future__ import annotations
@@ -12,19 +16,18 @@ import numpy as np
 from ..grid import FREE_S, OCCUPIED_S
 
 UNKNOWN_RGB = (128, 128, 128)
-THESIS_COLOURS = {  # name: (occupied RGB, free RGB)
-    "Lyon": ((200, 0, 200), (170, 235, 170)),
-    "Nevers": ((0, 110, 0), (250, 170, 170)),
-    "Auckland": ((215, 195, 0), (150, 170, 250)),
-}
-EXTRA_COLOURS = [((0, 90, 200), (190, 225, 250)), ((180, 80, 0), (250, 215, 170)),
-                 ((90, 0, 160), (220, 200, 250)), ((0, 140, 140), (190, 245, 240))]
+PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+           (227, 119, 194), (188, 189, 34), (23, 190, 207)]  # matplotlib's tab10 without its grey
+FREE_LIGHTEN = 0.6  # a robot's free cells: its colour this far towards white
 
 
 def colours_for(names: list[str]) -> list[tuple[tuple[int, int, int], tuple[int, int, int]]]:
-    """Colour pairs: the thesis's for its robots' names, then a fixed palette for the others."""
-    extra = iter(EXTRA_COLOURS * (len(names) // len(EXTRA_COLOURS) + 1))
-    return [THESIS_COLOURS[n] if n in THESIS_COLOURS else next(extra) for n in names]
+    """(occupied RGB, free RGB) per robot, by position: :data:`PALETTE` in order (repeating after nine)."""
+    out = []
+    for i in range(len(names)):
+        occ = PALETTE[i % len(PALETTE)]
+        out.append((occ, tuple(int(round(c + FREE_LIGHTEN * (255 - c))) for c in occ)))
+    return out
 
 
 def overlay_rgb(layers: list[np.ndarray], names: list[str]) -> np.ndarray:

@@ -75,3 +75,38 @@ def test_sweep_plot_angle_panel_reaches_a_half_turn():
     ax = fig.axes[[m for m, _ in PANELS].index("top_error_deg.median")]
     assert ax.get_ylim()[1] == 180.0
     assert "180" in tick_labels(fig)[ax.get_ylabel()]
+
+
+def test_sweep_plot_lines_of_equal_values_both_show_and_no_data_has_no_point():
+    """Issue 36 item 8: a line hidden behind another in two panels; a combination where no hypothesis was
+    correct drew a rejected-correct rate of 0."""
+    two = [{**r, "merger.window_m": w} for w in (0.5, 1.0) for r in rows()]
+    for r in two:
+        if r["merger.window_m"] == 1.0 and r["center_error.magnitude_m"] == 0.1:
+            r["rejected_correct_rate"] = None  # nothing correct to reject: no data
+    fig = sweep_figure(two, ["merger.window_m"], title="t")
+    panel = dict(zip((m for m, _ in PANELS), fig.axes, strict=False))
+    for metric in ("false_merges", "all_merged"):
+        a, b = panel[metric].get_lines()[:2]
+        assert a.get_marker() != b.get_marker() and list(a.get_xdata()) != list(b.get_xdata())
+        assert list(a.get_ydata()) == list(b.get_ydata())  # equal values, both visible
+    rate = [ln for ln in panel["rejected_correct_rate"].get_lines() if ln.get_label().endswith("=1.0")]
+    assert len(rate) == 1 and len(rate[0].get_xdata()) == 1  # the 0.1 m point is absent, not 0
+
+
+def test_sweep_rate_of_rejected_correct_is_no_data_without_a_correct_hypothesis():
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.experiments.plan import RunTask
+    from circsim.experiments.sweep import flatten
+
+    sc = load_scenario(bundled_scenarios()["scene1"])
+    robot = {"first_merge_s": None, "first_merge_arc_deg": None, "cycles": 12, "accepted": 0,
+             "final_angle_error_deg": None, "final_translation_error_m": None}
+    rec = {"scenario": "scene1", "seed": 1, "params": {}, "robots": {"A": dict(robot), "B": dict(robot)},
+           "all_merged": False, "false_merges": 0, "rejected_correct": 0, "realtime_factor": 1.0, "sim_s": 1.0,
+           "wall_s": 1.0, "interrupted": False, "merge_cycle_ms": {"median": 5.0, "p95": 6.0}}
+    task = RunTask(raw=sc.raw, source=sc.source, grid=(), seed=1, key="k")
+    row = flatten(rec, task, sc)
+    assert row["cycles"] == 24 and row["rejected_correct_rate"] is None
+    rec["robots"]["A"]["accepted"] = 3
+    assert flatten(rec, task, sc)["rejected_correct_rate"] == 0.0

@@ -40,3 +40,28 @@ def test_a_window_sweep_gives_its_table(tmp_path, capsys):
     assert png.read_bytes()[:4] == b"\x89PNG"
     out = capsys.readouterr().out
     assert out.startswith("| scene | W (m) | center error (m) |") and "| scene1 | 0.5 | 0.25 | 1/1 |" in out
+
+
+def test_a_cell_where_nothing_merged_shows_no_data_not_zero(tmp_path, capsys):
+    """Issue 36 item 8: a combination where nothing merged showed "max final t error 0.0 cm" (and a cell
+    without a merge cycle crashed the median)."""
+    none = {**ROW, "merger.window_m": 0.0, "center_error.magnitude_m": 0.25, "first_merge_arc_deg.Lyon": None,
+            "first_merge_arc_deg.mean": None, "final_translation_error_m.max": None, "merge_cycle_ms.median": None}
+    rows = [{**ROW, "merger.window_m": 0.0}, none]
+    assert report().main([str(write_rows(tmp_path / "w", rows)), "--png", str(tmp_path / "w.png")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("| scene1 | 0 | 0.25 |"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[3] == "0/1" and cells[8] == "—" and cells[9] == "—" and "0.0 cm" not in line, line
+
+
+def test_plot_lines_of_equal_values_both_show(tmp_path):
+    """Two windows with the same figures: each line has its own marker and x offset (one hid the other)."""
+    import matplotlib.pyplot as plt
+
+    rows = [{**ROW, "merger.window_m": w, "center_error.magnitude_m": e} for w in (0.5, 1.0) for e in (0.0, 0.25)]
+    fig = window_report.plot(window_report.summarize(rows), tmp_path / "p.png")
+    for ax in fig.axes:
+        a, b = ax.get_lines()[:2]
+        assert a.get_marker() != b.get_marker()
+        assert list(a.get_xdata()) != list(b.get_xdata()) and list(a.get_ydata()) == list(b.get_ydata())
+    plt.close(fig)

@@ -88,14 +88,14 @@ def test_overlay_png_colours(tmp_path):
     b = OccupancyGrid(np.array([[U, U, U]], np.uint8))
     p = save_overlay([a, b], ["Lyon", "Nevers"], tmp_path / "o.png")
     rgb = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)  # 4 px per cell, no title: cells from (0, 0)
-    assert rgb[0, 0].tolist() == rgb[3, 3].tolist() == [200, 0, 200]  # Lyon occupied: magenta
-    assert rgb[0, 4].tolist() == [170, 235, 170]  # Lyon free: light green
+    assert rgb[0, 0].tolist() == rgb[3, 3].tolist() == [31, 119, 180]  # the first map occupied: tab10 blue
+    assert rgb[0, 4].tolist() == [165, 201, 225]  # its free cells: the same blue, 60 % towards white
     assert rgb[0, 8].tolist() == [128, 128, 128]  # unknown to all: grey
 
 
 def test_overlay_picture_title_legend_scale_bar(tmp_path):
     """Issue 12: upscaled cells, a title line, each robot's colours in a legend and a 1 m scale bar."""
-    from merger.io.overlay import THESIS_COLOURS, overlay_picture
+    from merger.io.overlay import colours_for, overlay_picture
 
     states = np.zeros((60, 80), np.uint8)
     states[10:50, 10:70] = F
@@ -106,7 +106,7 @@ def test_overlay_picture_title_legend_scale_bar(tmp_path):
     # cropped to the known cells + 10 cells of margin, 4 px per cell: 60 x 80 cells → 240 x 320 px
     assert plain.shape[1] == max(80 * 4, 420) and plain.shape[0] > 60 * 4
     legend = plain[60 * 4:]
-    occ, free = THESIS_COLOURS["Lyon"]
+    (occ, free), = colours_for(["Lyon"])
     assert (legend == occ).all(axis=2).sum() >= 13 * 13 and (legend == free).all(axis=2).sum() >= 13 * 13
     bar_rows = np.nonzero((legend == 0).all(axis=2).sum(axis=1) >= 80)[0]  # 1 m = 20 cells = 80 px of black
     assert bar_rows.size >= 5
@@ -190,3 +190,21 @@ def test_two_processes_checking_one_output_folder_both_pass(tmp_path):
         failed = pool.starmap(_check_often, [(str(tmp_path), 3000)] * 2)
     assert failed == [0, 0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_one_qualitative_palette_in_the_overlay_and_the_recording():
+    """Issue 36 item 10: each robot's occupied and free colours were unrelated hues (the thesis's pairs);
+    now one hue per robot (tab10), its free cells lighter, and the rerun recording draws the same."""
+    import colorsys
+
+    from merger.io.overlay import PALETTE, colours_for
+
+    pairs = colours_for(["Lyon", "Auckland", "Nevers", "D", "E"])
+    assert [occ for occ, _ in pairs] == PALETTE[:5]
+    for occ, free in pairs:
+        h_occ, _, _ = colorsys.rgb_to_hls(*(c / 255 for c in occ))
+        h_free, l_free, _ = colorsys.rgb_to_hls(*(c / 255 for c in free))
+        assert min(abs(h_occ - h_free), 1 - abs(h_occ - h_free)) < 0.02 and l_free > colorsys.rgb_to_hls(*(c / 255 for c in occ))[1]
+    import circsim.record.entities as entities
+
+    assert entities.PALETTE is PALETTE

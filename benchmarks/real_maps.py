@@ -34,6 +34,9 @@ from merger.grid import FREE_S, OCCUPIED_S  # noqa: E402
 from merger.search import angle_diff_deg  # noqa: E402
 from merger.team.orders import Warps  # noqa: E402
 from merger.transform import overlap, rotation  # noqa: E402
+from merger.team.evidence import contrast  # noqa: E402
+from merger.team.orders import shifted, whole_map_guard  # noqa: E402
+from merger.team.verify import refined_placement  # noqa: E402
 from tests.realdata import (  # noqa: E402
     CENTER_TOL_M,
     DATA,
@@ -48,6 +51,8 @@ from tests.realdata import (  # noqa: E402
     near_occupied,
     occupied_xy,
     pair_case,
+    placement_error,
+    refined_truth,
     ucmerced_cases,
 )
 
@@ -96,12 +101,30 @@ def feature_match(case: Case):
     return a.accepted, a.theta_deg, float(np.hypot(*off))
 
 
+def _judged(res, case: Case, judge: Case | None, ms: float) -> dict:
+    """A merge's verdict and its placement judged against the case's truth (``correct``) and against the
+    refined truth (``correct_refined``, with the errors of the placement and of the search's placement)."""
+    top = res.top
+    th, t = top.theta_deg["b_mov"], top.translation("b_mov")
+    sth = top.search_theta_deg.get("b_mov", th)
+    st = top.search_translation_m.get("b_mov", t)
+    out = {"accepted": bool(res.accepted), "correct": correct(case, th, t), "reason": res.reason, "ms": ms,
+           "theta": th, "t": list(t), "search_theta": sth, "search_t": list(st)}
+    if judge is not None:
+        out["correct_refined"] = correct(judge, th, t)
+        out["error"] = placement_error(judge, th, t)  # (°, m) against the refined truth
+        out["search_error"] = placement_error(judge, sth, st)
+    return out
+
+
 def run_case(case: Case, params: MergeParams, probes: bool):
     # the reference map first: results in its frame (merge_team ranks maps by name for the orders)
     maps = [MapInput("a_ref", grid(case.ref), case.c_ref), MapInput("b_mov", grid(case.mov), case.c_mov)]
     p = replace(params, roi_m=case.roi_m, window_m=case.window_m)
+    ref = refined_truth(case)
+    judge = ref[0] if ref is not None else None
     t0 = time.perf_counter()
-    res = merge_team(maps, p)
+    res = merge_team(maps, p)  # the defaults: verification auto, the accepted placement refined
     ms = (time.perf_counter() - t0) * 1e3
     top = res.top
     th, t = top.theta_deg["b_mov"], top.translation("b_mov")
@@ -110,14 +133,32 @@ def run_case(case: Case, params: MergeParams, probes: bool):
            "theta": th, "t": list(t), "accepted": res.accepted, "correct": correct(case, th, t),
            "reason": res.reason, "nu": top.nu_sum, "support": sum(c.support for c in top.checks.values()),
            "score": step.score, "runner_up": step.runner_up_score, "roi_support": step.counts.support,
-           "ms": ms, "truth": None if case.truth is None else [case.truth[0], list(case.truth[1])]}
-    # the contrast rule as `merger merge --verification contrast` runs it: the same search (the same
-    # answer), verified by the contrast rule, then the ambiguity rule and the guard beyond the window
-    t1 = time.perf_counter()
-    rc = merge_team(maps, replace(p, verification="contrast"))
-    cth, ct = rc.top.theta_deg["b_mov"], rc.top.translation("b_mov")
-    row["contrast"] = {"accepted": bool(rc.accepted), "correct": correct(case, cth, ct), "reason": rc.reason,
-                       "ms": (time.perf_counter() - t1) * 1e3}
+           "ms": ms, "truth": None if case.truth is None else [case.truth[0], list(case.truth[1])],
+           "default": _judged(res, case, judge, ms)}
+    if ref is not None:
+        row["refined_truth"] = {"theta": judge.truth[0], "t": list(judge.truth[1]), "icp_rms_m": ref[1],
+                                "icp_inliers": ref[2], "from_keypoints": placement_error(case, *judge.truth)}
+    # the thesis's rule and the contrast rule as `merger merge --verification whole_map|contrast` run them:
+    # the same search (the same answer), verified, then the ambiguity rule and the guard beyond the window
+    for rule, extra in (("whole_map", {"refine_whole": False}), ("contrast", {})):
+        t1 = time.perf_counter()
+        rr = merge_team(maps, replace(p, verification=rule, **extra))
+        row[rule] = _judged(rr, case, judge, (time.perf_counter() - t1) * 1e3)
+        row[rule]["pair_passed"] = all(v.passed for v in rr.top.checks.values())
+    # the evidence every rule's verdict is a function of (leave-one-building-out: choose_constants)
+    al = top.steps[0][1]
+    sth, st = top.search_theta_deg.get("b_mov", th), top.search_translation_m.get("b_mov", t)
+    w = Warps(maps)
+    placed = w.get(0, 1, sth, st)
+    k = contrast(maps[0].grid, placed, shifted(case.c_ref, st), p.tolerance_m)
+    rth, rt = refined_placement(maps[0].grid, placed, shifted(case.c_ref, st), sth, st, p)
+    guard = al.window_m > 0 and al.beyond is not None
+    row["evidence"] = {"whole_map_passed": row["whole_map"]["pair_passed"],
+                       "contrast": k.contrast, "best_at": list(k.best_at), "support": k.support,
+                       "has_evidence": bool(al.has_evidence),
+                       "ambiguity_failed": any(not a.used for a in res.ambiguous),
+                       "guard": guard, "guard_settled": guard and whole_map_guard(maps, (0, 1), p, w)("b_mov", al),
+                       "refined_correct": None if judge is None else correct(judge, rth % 360.0, rt)}
     if case.truth is not None:
         tt = case.truth[1]
         off = np.asarray(t, np.float64) - rotation(th) @ (rotation(-case.truth[0]) @ np.asarray(tt, np.float64))
@@ -225,13 +266,25 @@ def main(argv=None) -> int:
               + (" ".join(f"{k}={v:.3f}" for k, v in row.get('found', {}).items() if k.startswith('nu')))
               + (" | truth " + " ".join(f"{k}={v:.3f}" for k, v in row.get('at_truth', {}).items()
                                         if k.startswith('nu')) if 'at_truth' in row else ""), flush=True)
+        d = row["default"]
+        if "error" in d:
+            rt = row["refined_truth"]
+            print(f"    defaults: acc {d['accepted']!s:5} ok(refined truth) {d['correct_refined']!s:5} "
+                  f"ok(keypoints) {d['correct']!s:5} error {d['error'][0]:.2f}° {d['error'][1]:.3f} m (search "
+                  f"{d['search_error'][0]:.2f}° {d['search_error'][1]:.3f} m); refined truth: ICP RMS "
+                  f"{rt['icp_rms_m']:.3f} m on {100 * rt['icp_inliers']:.0f}%, {rt['from_keypoints'][0]:.2f}° "
+                  f"{rt['from_keypoints'][1]:.2f} m from the keypoints" + ("" if d["accepted"] else
+                                                                          f"; {d['reason'][:140]}"), flush=True)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     print()
     print(summary(rows))
+    if any(r["case"].startswith("halmstad") for r in rows):
+        print()
+        print(leave_one_building_out(rows))
     if "aphill" in args.sets and not args.limit:
         for roi in rois:
-            for verification in ("whole_map", "contrast"):
+            for verification in ("auto", "whole_map", "contrast"):
                 print(aphill_team(args.data, roi, verification), flush=True)
     return 0
 
@@ -253,25 +306,110 @@ def tally(rows, key=None):
     return n, ca, fa, rr, rw, ua
 
 
+def _refined(rows, key):
+    """``tally`` of a rule judged by the refined truth."""
+    return tally([{key: {"accepted": r[key]["accepted"], "correct": r[key].get("correct_refined")}} for r in rows], key)
+
+
 def summary(rows) -> str:
     groups: dict[tuple, list] = {}
     for r in rows:
         groups.setdefault((r["case"].split()[0], r["roi"], r["err"]), []).append(r)
-    head = (f"{'set':9s} {'ROI':>4s} {'err':>5s} {'pairs':>5s} | {'ν_min rule: ok':>14s} {'false':>5s} {'refused':>7s} | "
-            f"{'contrast: ok':>12s} {'false':>5s} {'refused':>7s} | {'features: ok':>12s} {'false':>5s} | "
-            f"{'merge ms (median, max)':>22s} | {'contrast ms':>11s}")
+    head = (f"{'set':9s} {'ROI':>4s} {'err':>5s} {'pairs':>5s} | {'defaults: ok':>12s} {'false':>5s} {'refused':>7s} "
+            f"{'(keypoints)':>11s} | {'ν_min rule':>10s} | {'contrast':>8s} | {'features':>8s} | "
+            f"{'error median (search)':>22s} | {'ms: defaults':>12s} {'ν_min':>6s} {'contrast':>8s}")
     lines = [head, "-" * len(head)]
     for (name, roi, err), rs in sorted(groups.items()):
-        n, ca, fa, rr, rw, ua = tally(rs)
-        _, kca, kfa, krr, krw, _ = tally(rs, "contrast")
+        n, ca, fa, rr, rw, ua = _refined(rs, "default")
+        _, kca, kfa, krr, krw, _ = tally(rs, "default")
+        _, wca, wfa, wrr, wrw, _ = _refined(rs, "whole_map")
+        _, cca, cfa, crr, crw, _ = _refined(rs, "contrast")
         _, fca, ffa, _, _, fua = tally(rs, "feature")
-        ms = np.array([r["ms"] for r in rs])
-        kms = np.array([r["contrast"]["ms"] for r in rs])
-        lines.append(f"{name:9s} {roi:4.0f} {err:5.2f} {n:5d} | {ca:14d} {fa:5d} {rr + rw:7d} | {kca:12d} {kfa:5d} "
-                     f"{krr + krw:7d} | {fca:12d} {ffa:5d} | {np.median(ms):10.0f} {ms.max():11.0f} | {np.median(kms):11.0f}"
+        acc = [r["default"] for r in rs if r["default"]["accepted"] and "error" in r["default"]]
+        err_txt = "-"
+        if acc:
+            e = np.median([a["error"][1] for a in acc]), np.median([a["error"][0] for a in acc])
+            se = np.median([a["search_error"][1] for a in acc]), np.median([a["search_error"][0] for a in acc])
+            err_txt = f"{100 * e[0]:.1f} cm {e[1]:.2f}° ({100 * se[0]:.1f} cm {se[1]:.2f}°)"
+        ms = [np.median([r[k]["ms"] for r in rs]) for k in ("default", "whole_map", "contrast")]
+        lines.append(f"{name:9s} {roi:4.0f} {err:5.2f} {n:5d} | {ca:12d} {fa:5d} {rr + rw:7d} {f'{kca}/{kfa}':>11s} | "
+                     f"{f'{wca}/{wfa}/{wrr + wrw}':>10s} | {f'{cca}/{cfa}/{crr + crw}':>8s} | {f'{fca}/{ffa}':>8s} | "
+                     f"{err_txt:>22s} | {ms[0]:12.0f} {ms[1]:6.0f} {ms[2]:8.0f}"
                      + (f"  (no truth: accepted {ua} / features {fua})" if ua or fua else ""))
-    lines.append("ok = accepted and correct (θ within 3°, the true center within 0.5 m + the truth's RMS); "
-                 "false = accepted and not correct; refused = not accepted")
+    lines.append("ok = accepted and correct against the refined truth (the truth refined by ICP on the two maps: θ "
+                 "within 3°, the true center within 0.5 m); (keypoints) = ok / false against the keypoint or fitted "
+                 "truth (0.5 m + its RMS); other rules ok/false/refused against the refined truth, features ok/false; "
+                 "error: the merged placement's (and the search's) median error against the refined truth, "
+                 "accepted cases")
+    return "\n".join(lines)
+
+
+CONTRAST_GRID = (1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.8, 2.0, 2.2, 2.5, 3.0)
+AGREE_GRID = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
+
+
+def auto_verdict(row, contrast_min: float, agree_deg: float, min_support: int = 200) -> bool:
+    """Whether verification auto with these constants accepts a case: the thesis's rule or the contrast
+    rule passes the search's answer, and neither the ambiguity rule nor the guard beyond the window
+    refuses it (the verdict from the evidence ``run_case`` keeps)."""
+    e = row["evidence"]
+    if not e["has_evidence"] or e["ambiguity_failed"] or (e["guard"] and not e["guard_settled"]):
+        return False
+    return e["whole_map_passed"] or (e["support"] >= min_support and abs(e["best_at"][0]) <= agree_deg
+                                     and e["contrast"] >= contrast_min)
+
+
+def _score(rows, cmin, agree):
+    ok = bad = 0
+    for r in rows:
+        if auto_verdict(r, cmin, agree):
+            good = r["evidence"]["refined_correct"]  # the merge at the refined placement
+            ok += bool(good)
+            bad += not good
+    return ok, bad
+
+
+FALSE_COST = 5  # a false merge counts as this many refused correct ones when constants are chosen
+
+
+def choose_constants(rows):
+    """(contrast_min, agree_deg) on these cases: the grid's pairs with the highest ok − FALSE_COST × false
+    (against the refined truth), then the middle of that plateau — the median agreement among them, and
+    the median contrast_min among the best at that agreement (neither the strictest nor the most lenient
+    of equally good values)."""
+    scores = {(c, a): _score(rows, c, a) for c in CONTRAST_GRID for a in AGREE_GRID}
+    top = max(ok - FALSE_COST * bad for ok, bad in scores.values())
+    best = [k for k, (ok, bad) in scores.items() if ok - FALSE_COST * bad == top]
+    agrees = sorted({a for _, a in best})
+    agree = agrees[(len(agrees) - 1) // 2]
+    cmins = sorted(c for c, a in best if a == agree)
+    return cmins[(len(cmins) - 1) // 2], agree
+
+
+def leave_one_building_out(rows) -> str:
+    """The constants of the contrast rule chosen on two Halmstad buildings, measured on the third."""
+    hal = [r for r in rows if r["case"].startswith("halmstad") and "correct_refined" in r["default"]]
+    buildings = sorted({r["case"].split()[1].split("_")[0] for r in hal})
+    lines = ["leave one building out (constants chosen on the others, measured on the held-out one; vs the refined truth; "
+             "cases refused by the guard beyond the window or the ambiguity rule count as refused for every constant):"]
+    tot = [0, 0, 0]
+    for b in buildings:
+        train = [r for r in hal if not r["case"].split()[1].startswith(b + "_")]
+        test = [r for r in hal if r["case"].split()[1].startswith(b + "_")]
+        cmin, agree = choose_constants(train)
+        tr_ok, tr_bad = _score(train, cmin, agree)
+        ok, bad = _score(test, cmin, agree)
+        tot[0] += ok
+        tot[1] += bad
+        tot[2] += len(test)
+        lines.append(f"  held out {b}: chosen contrast_min {cmin:g}, agreement {agree:g}° (on the others: {tr_ok} ok, "
+                     f"{tr_bad} false of {len(train)}); held out: {ok} ok, {bad} false, {len(test) - ok - bad} refused "
+                     f"of {len(test)}")
+    lines.append(f"  held out, all: {tot[0]} ok, {tot[1]} false of {tot[2]}")
+    cmin, agree = choose_constants(hal)
+    lines.append(f"  chosen on all three: contrast_min {cmin:g}, agreement {agree:g}° ({_score(hal, cmin, agree)[0]} ok, "
+                 f"{_score(hal, cmin, agree)[1]} false of {len(hal)}); the defaults 1.5, 2°: "
+                 f"{_score(hal, 1.5, 2.0)[0]} ok, {_score(hal, 1.5, 2.0)[1]} false")
     return "\n".join(lines)
 
 

@@ -155,11 +155,11 @@ def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> Non
                    help=f"verification threshold in [0, 1] (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
                    help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
-    p.add_argument("--verification", choices=("whole_map", "contrast"), default=d.verification,
+    p.add_argument("--verification", choices=("auto", "whole_map", "contrast"), default=d.verification,
                    help="whole_map: whole-map ω̃ ≥ --nu-min (the thesis); contrast: for maps from independent runs "
                         "(real maps), the whole-map fit within --tolerance must stand --contrast-min times above "
-                        "the best rival placement and peak within 2° of the answer (docs/merging-real-maps.md; "
-                        f"default {d.verification})")
+                        "the best rival placement and peak within 4° of the answer; auto: accepted when either "
+                        f"accepts (docs/merging-real-maps.md; default {d.verification})")
     p.add_argument("--tolerance", type=float, default=d.tolerance_m, metavar="M",
                    help=f"contrast: walls this close count as agreeing, metres (default {d.tolerance_m})")
     p.add_argument("--contrast-min", type=float, default=d.contrast_min,
@@ -469,6 +469,11 @@ def report_merge(res, as_json: bool, extra: dict | None = None) -> None:
         print(f"{star} order {'→'.join(o.order):<28} {ev}  [{order_mark(o, res)}]")
         print("      " + "; ".join(f"{k} {v:.2f}° t ({o.translation(k)[0]:+.3f}, {o.translation(k)[1]:+.3f}) m"
                                    for k, v in o.theta_deg.items() if k != res.frame))
+        if o.search_theta_deg:  # the placement above is the search's refined on the whole maps
+            st = o.search_translation_m
+            print("      the search's: " + "; ".join(f"{k} {v:.2f}° t ({st[k][0]:+.3f}, {st[k][1]:+.3f}) m"
+                                                  for k, v in o.search_theta_deg.items() if k != res.frame)
+                  + " (refined on the whole maps to the line above)")
     print(f"merge cycle {res.wall_ms:.0f} ms; {verdict_line(res)}")
 
 

@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from ..grid import OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+from ..jit import njit
 
 LOCAL_DEG = 5.0
 LOCAL_M = 0.5
@@ -44,7 +45,13 @@ RIVAL_STEP_DEG = 2.0
 RIVAL_REFINED = 3
 STEPS = ((1.0, 2.0), (0.5, 1.0), (0.25, 0.5), (0.1, 0.25))  # (degrees, cells) of the pattern search
 TOLERANCE_M = 0.2
-AGREE_DEG = 2.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast)
+REFINE_DEG = 5.0  # the refinement of an accepted placement (refine): within this angle ...
+REFINE_M = 1.0  # ... and this translation on each axis
+SCAN_DEG = (-2.0, -1.0, 0.0, 1.0, 2.0)  # its coarse scan: these angles × translations every SCAN_STEP_M
+SCAN_STEP_M = 0.1
+SCAN_POINTS = 4096
+AGREE_DEG = 4.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast; chosen
+# leaving one Halmstad building out, with the accepted placement refined: docs/merging-real-maps.md)
 CONTRAST_MIN = 1.5  # real maps: search answers 1.4–5.5, placements 20–180° off them ≤ 0.56 (docs/merging-real-maps.md)
 
 
@@ -65,6 +72,22 @@ class Contrast:
         return self.best / self.rival if self.rival > 0 else (math.inf if self.best > 0 else 0.0)
 
 
+@njit(cache=True, nogil=True)
+def _fit_sum(px, py, cx, cy, co, si, dx, dy, weight):
+    """Σ weight[row, col] over the points (px, py) rotated by (co, si) about (cx, cy) and shifted by (dx, dy)
+    (cell units; the points are relative to the pivot); points off the grid count 0."""
+    h, w = weight.shape
+    s = 0.0
+    for k in range(px.shape[0]):
+        x = px[k] * co - py[k] * si + cx + dx
+        y = px[k] * si + py[k] * co + cy + dy
+        c = int(math.floor(x))
+        r = int(math.floor(y))
+        if 0 <= r < h and 0 <= c < w:
+            s += weight[r, c]
+    return s
+
+
 class Fit:
     """f(θ, δ) of b's occupied cells onto grid a (see the module documentation); ``pivot``: world (x, y)."""
 
@@ -81,6 +104,13 @@ class Fit:
         self.pts = np.stack([bx, by], 1) - self.pivot
         self.d = float(tol_cells)
         self.shape = a.states.shape
+        # w(d) on a's known cells, 0 on its unknown ones: one look-up per point and placement
+        near = np.minimum(self.dist * np.float32(1.0 / self.d), np.float32(1.0))  # cv2's distance to no cell is ~1e38
+        self.weight = np.where(self.known, np.float32(1.0) - near ** 2, np.float32(0.0)).astype(np.float32)
+        self._px = np.ascontiguousarray(self.pts[:, 0])
+        self._py = np.ascontiguousarray(self.pts[:, 1])
+        step = max(1, len(self.pts) // SCAN_POINTS)  # every step-th point: the refinement's coarse scan
+        self._sx, self._sy = self._px[::step].copy(), self._py[::step].copy()
 
     def _cells(self, theta_deg: float, dx: float, dy: float):
         t = math.radians(theta_deg)
@@ -96,17 +126,27 @@ class Fit:
     def __call__(self, theta_deg: float, dx: float, dy: float) -> float:
         if not len(self.pts):
             return 0.0
-        r, c = self._cells(theta_deg, dx, dy)
-        return float(np.maximum(0.0, 1.0 - (self.dist[r, c] / self.d) ** 2).sum()) / len(self.pts)
+        t = math.radians(theta_deg)
+        return _fit_sum(self._px, self._py, float(self.pivot[0]), float(self.pivot[1]), math.cos(t), math.sin(t),
+                        float(dx), float(dy), self.weight) / len(self.pts)
+
+    def sampled(self, theta_deg: float, dx: float, dy: float) -> float:
+        """f on at most ~``SCAN_POINTS`` of b's occupied cells (evenly taken in their raster order)."""
+        if not len(self._sx):
+            return 0.0
+        t = math.radians(theta_deg)
+        return _fit_sum(self._sx, self._sy, float(self.pivot[0]), float(self.pivot[1]), math.cos(t), math.sin(t),
+                        float(dx), float(dy), self.weight) / len(self._sx)
 
     def support(self) -> int:
         """b's occupied cells on a's known cells at the placement itself."""
         return int(self._cells(0.0, 0.0, 0.0)[0].size) if len(self.pts) else 0
 
 
-def climb(f: Fit, start: tuple[float, float, float], lim_deg: float, lim_cells: float):
-    """Pattern search from ``start`` (θ°, dx, dy cells) within ±lim of it; returns (value, (θ, dx, dy))."""
-    th0, x0, y0 = start
+def climb(f: Fit, start: tuple[float, float, float], lim_deg: float, lim_cells: float, around=None):
+    """Pattern search from ``start`` (θ°, dx, dy cells) within ±lim of ``around`` (default: ``start``);
+    returns (value, (θ, dx, dy))."""
+    th0, x0, y0 = start if around is None else around
     best, at = f(*start), start
     for sa, sc in STEPS:
         moved = True
@@ -120,6 +160,25 @@ def climb(f: Fit, start: tuple[float, float, float], lim_deg: float, lim_cells: 
                 if v > best:
                     best, at, moved = v, q, True
     return best, at
+
+
+def refine(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M):
+    """The best fit of b placed onto a near its placement: (fit, (θ°, dx, dy cells)), the offset relative
+    to the placement, θ about ``pivot``, within ±``REFINE_DEG`` and ±``REFINE_M`` on each axis. Two climbs
+    (:func:`climb`): from the placement, and from the best of a coarse scan of that box (``SCAN_DEG`` ×
+    ``SCAN_STEP_M`` steps, on ~``SCAN_POINTS`` of b's occupied cells); the higher fit wins. The scan finds
+    the whole maps' peak when the search's answer sits on a lesser one nearby (a corridor's: Halmstad F5,
+    0.6 m along it, docs/merging-real-maps.md)."""
+    res = a.resolution
+    f = Fit(a, b, pivot, max(tolerance_m / res, 1.0))
+    lim = REFINE_M / res
+    here = climb(f, (0.0, 0.0, 0.0), REFINE_DEG, lim)
+    n = int(round(REFINE_M / SCAN_STEP_M))
+    offs = [k * SCAN_STEP_M / res for k in range(-n, n + 1)]
+    scan = max(((f.sampled(th, dx, dy), (th, dx, dy)) for th in SCAN_DEG for dx in offs for dy in offs),
+               key=lambda v: v[0])
+    there = climb(f, scan[1], REFINE_DEG, lim, (0.0, 0.0, 0.0))
+    return there if there[0] > here[0] else here
 
 
 def contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M) -> Contrast:

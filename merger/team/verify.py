@@ -4,7 +4,10 @@ An alignment is accepted when ω̃ computed on the whole aligned maps is at leas
 support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
 hypothesis is rejected in that case (favouring false negatives over false merges). For maps from
 independent runs (real maps), :func:`verify_contrast` asks instead how far the placement's whole-map
-fit stands above its rivals' (:mod:`merger.team.evidence`).
+fit stands above its rivals' (:mod:`merger.team.evidence`). :func:`check_pair` is the one dispatch on
+``MergeParams.verification`` for a pair of placed maps (every strategy and ``merger align`` call it);
+``auto``, the default, accepts a pair that either rule accepts (docs/merging-real-maps.md: the thesis's rule
+where maps agree cell by cell, the contrast rule where they agree only within a few cells).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import numpy as np
 from ..grid import OccupancyGrid
 from ..measures import Counts, similarity_index
 from ..transform import overlap
-from .evidence import AGREE_DEG, Contrast, contrast
+from .evidence import AGREE_DEG, Contrast, contrast, refine
 
 
 @dataclass(frozen=True)
@@ -42,7 +45,6 @@ class Verification:
                        contrast_support=k.support,
                        refined_offset={"theta_deg": k.best_at[0], "cells": [k.best_at[1], k.best_at[2]]})
         return out
-
 
 
 def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
@@ -79,13 +81,43 @@ def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: f
     return Verification(s.value, s.counts, True, "", k)
 
 
+def check_pair(a: OccupancyGrid, b: OccupancyGrid, pivot, params, label: str = "") -> Verification:
+    """Verification of b placed onto a (grids on one lattice; rotations about ``pivot``, where b's center
+    lands) by ``params.verification``: "whole_map" (ω̃ ≥ ν_min on the overlap), "contrast"
+    (:func:`verify_contrast`) or "auto": the thesis's rule, and when it refuses, the contrast rule (accepted
+    when either accepts; the reason of a refusal names both). ``params``: a :class:`MergeParams` (read by
+    attribute: ``verification``, ``nu_min``, ``min_support``, ``tolerance_m``, ``contrast_min``)."""
+    rule = params.verification
+    if rule not in ("whole_map", "contrast", "auto"):
+        raise ValueError(f"check_pair: verification {rule!r} is not a whole-map rule")
+    if rule != "contrast":
+        v = verify(*overlap(a, b), nu_min=params.nu_min, min_support=params.min_support, label=label)
+        if rule == "whole_map" or v.passed:
+            return v
+    k = verify_contrast(a, b, pivot, tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
+                        min_support=params.min_support, label=label)
+    if rule == "contrast" or k.passed:
+        return k
+    return Verification(v.nu, v.counts, False, f"{v.reason}; {k.reason}", k.contrast)
+
+
+def refined_placement(a: OccupancyGrid, b: OccupancyGrid, pivot, theta: float, t, params):
+    """Whole-map refinement of a placement (θ, t) of b onto a (b already placed by it, about ``pivot`` =
+    where b's center lands): the best fit near it (:func:`merger.team.evidence.refine`, tolerance
+    ``params.tolerance_m``) as a placement of the same form, (θ + δθ, t + δ); rotating the placed map by δθ
+    about the pivot and shifting it by δ is that placement."""
+    _, (dth, dx, dy) = refine(a, b, pivot, params.tolerance_m)
+    return theta + dth, (float(t[0]) + dx * a.resolution, float(t[1]) + dy * a.resolution)
+
+
 def no_evidence(al, floor: int, label: str = "") -> str:
     """Why an alignment without evidence (``al.has_evidence`` false) is not an answer."""
     what = f" for {label}" if label else ""
     c = al.counts
     return (f"no evidence{what}: no placement in the {al.roi_m:g} m ROI reaches {floor} cells of support "
-            f"(agr̃ + dis) with an agreeing cell (best: agree {c.agree}, disagree {c.disagree}); is an "
-            f"occupied cell near the center in both maps?")
+            f"(agr̃ + dis) with an agreeing cell (best: agree {c.agree}, disagree {c.disagree}); the search sees "
+            f"only the {al.roi_m:g} m square about each center: choose a common center with walls of both maps "
+            f"within {al.roi_m / 2:g} m of it, or a larger ROI (--roi, merger.roi_m; real maps: 16 m)")
 
 
 def pairwise(layers: list[np.ndarray]) -> list[tuple[int, int]]:

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.config.scenario import MergerSettings, bundled_scenarios, load_scenario
 from circsim.config.types import DriftConfig, LaserConfig, SlamConfig
-from circsim.sim import Simulation
+from circsim.sim import Simulation, merge_params
 from circsim.slam.models import Slam
 from circsim.world.laser import LaserScan, apply_sensor_model
 
@@ -70,6 +70,19 @@ def test_thesis_scenes_are_the_scenes_under_gmapping_and_urg_settings(name):
     assert (thesis.laser.noise_std_m, thesis.laser.noise_rel) == (0.015, 0.015)
     assert thesis.world == base.world and thesis.robots == base.robots and thesis.merger == base.merger
     assert thesis.network == base.network
+
+
+@pytest.mark.parametrize("name", ["scene1", "scene2", "scene1-thesis", "scene2-thesis"])
+def test_thesis_scenes_pin_the_thesis_rule_while_the_default_is_auto(name):
+    """The thesis scenes verify by the thesis's rule (ω̃ ≥ ν_min) and merge at the search's placement;
+    every other scenario takes the defaults: verification auto, the placement refined on the whole maps."""
+    m = load_scenario(bundled_scenarios()[name]).merger
+    assert m.verification == "whole_map" and not m.refine_whole
+    assert merge_params(load_scenario(bundled_scenarios()[name])).verification == "whole_map"
+    d = MergerSettings()
+    assert d.verification == "auto" and d.refine_whole
+    hall = load_scenario(bundled_scenarios()["hall4"])
+    assert merge_params(hall).verification == "auto" and merge_params(hall).refine_whole
 
 
 # The thesis's online experiment: first correct merges after 20–30 s, under a quarter circle; the issue's

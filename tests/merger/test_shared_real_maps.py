@@ -4,11 +4,25 @@ reason, when the data folder is absent (a clone without the shared data)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from merger import MapInput, MergeParams, merge_team
 from merger.search import angle_diff_deg
-from tests.realdata import DATA, aphill_pairs, correct, fitted_truth, grid, halmstad_cases, pair_case
+from merger.team.orders import Warps, fused_layers, shifted
+from merger.team.verify import check_pair
+from merger.transform import paste
+from tests.realdata import (
+    DATA,
+    aphill_pairs,
+    correct,
+    fitted_truth,
+    grid,
+    halmstad_cases,
+    pair_case,
+    placement_error,
+    refined_truth,
+)
 
 pytestmark = pytest.mark.skipif(not (DATA / "halmstad" / "gt_pairs.csv").exists(),
                                 reason=f"the shared real maps are not at {DATA}")
@@ -32,8 +46,47 @@ def test_halmstad_pairs_from_independent_runs_merge_correctly_with_the_contrast_
     res, th, t = merged(case, verification="contrast")
     assert correct(case, th, t), (th, t, case.truth)
     assert res.accepted, res.reason
-    thesis, th2, t2 = merged(case)
+    thesis, th2, t2 = merged(case, verification="whole_map")
     assert correct(case, th2, t2) and not thesis.accepted and "ν_min" in thesis.reason
+
+
+@pytest.mark.parametrize("name", ["halmstad E5_01->E5_02", "halmstad HIH_02->HIH_01"])
+def test_the_defaults_merge_a_halmstad_pair_correctly_at_its_refined_placement(name):
+    """With every parameter at its default (verification auto, the placement refined on the whole maps),
+    a pair of maps from independent runs, centers 0.25 m off, ROI 16 m, is accepted and correct against the
+    refined truth (the keypoint truth refined by ICP), the merged map lies at the refined placement, which is
+    nearer the refined truth than the search's, and the search's placement is kept beside it."""
+    case = next(c for c in halmstad_cases(DATA, [16.0], [0.25]) if c.name == name)
+    judge, rms, _ = refined_truth(case)
+    assert rms < 0.1  # the refined truth fits the walls to a few centimetres
+    res, th, t = merged(case)
+    assert res.accepted, res.reason
+    assert correct(judge, th, t), (th, t, judge.truth)
+    top = res.chosen
+    sth, st = top.search_theta_deg["b_mov"], top.search_translation_m["b_mov"]
+    assert (sth, tuple(st)) != (th, tuple(t))
+    assert placement_error(judge, th, t)[1] < placement_error(judge, sth, st)[1]
+    # the merged map is drawn at the refined placement: its moving layer is the moving map placed there
+    maps = [MapInput("a_ref", grid(case.ref), case.c_ref), MapInput("b_mov", grid(case.mov), case.c_mov)]
+    there = fused_layers(maps, top.theta_deg, top.translation_m)[1]
+    assert np.array_equal(there.states, paste(res.layers["b_mov"], there).states)
+
+
+def test_the_defaults_refuse_a_wrong_placement_of_a_real_pair():
+    """The default rule (auto) on the same real pair rotated 30°, 90° and 180° off its refined truth: neither
+    the thesis's rule nor the contrast rule accepts it. (The contrast rule judges the angle's basin: a
+    placement 1 m off in translation at the right angle passes it, and the refinement, ±1 m, moves it.)"""
+    case = next(c for c in halmstad_cases(DATA, [16.0], [0.25]) if c.name == "halmstad E5_01->E5_02")
+    judge, _, _ = refined_truth(case)
+    maps = [MapInput("a_ref", grid(case.ref), case.c_ref), MapInput("b_mov", grid(case.mov), case.c_mov)]
+    th, t = judge.truth
+    w = Warps(maps)
+    right = check_pair(maps[0].grid, w.get(0, 1, th, t), shifted(case.c_ref, t), MergeParams())
+    assert right.passed, right.reason
+    for dth, dt in ((30.0, (0.0, 0.0)), (90.0, (0.5, 0.0)), (180.0, (0.0, 0.0))):
+        tw = (t[0] + dt[0], t[1] + dt[1])
+        v = check_pair(maps[0].grid, w.get(0, 1, (th + dth) % 360.0, tw), shifted(case.c_ref, tw), MergeParams())
+        assert not v.passed and "ν_min" in v.reason, (dth, dt)
 
 
 def test_aphill_pair_lands_on_the_independent_fit():
@@ -43,7 +96,7 @@ def test_aphill_pair_lands_on_the_independent_fit():
     th_fit, t_fit, rms, frac = fitted_truth(ref, mov)
     assert rms < 0.1 and frac > 0.9 and abs(angle_diff_deg(th_fit, 0.0)) > 2.0  # a good fit, away from identity
     case = pair_case(f"aphill {name}", ref, mov, th_fit, t_fit, 8.0, 0.0, 7000)
-    for verification in ("whole_map", "contrast"):
+    for verification in ("whole_map", "contrast", "auto"):
         res, th, t = merged(case, verification=verification)
         assert res.accepted and correct(case, th, t), (verification, res.reason, th)
         assert abs(angle_diff_deg(th, th_fit)) < 0.5
@@ -57,6 +110,6 @@ def test_a_long_corridor_that_looks_alike_both_ways_is_refused_not_merged_wrong(
     ref, mov = str(d / "ucm_longcorridor1.yaml"), str(d / "ucm_longcorridor2.yaml")
     th_fit, t_fit, _, _ = fitted_truth(ref, mov)
     case = pair_case("longcorridor 2->1", ref, mov, th_fit, t_fit, 16.0, 0.0, 9000)
-    for verification in ("whole_map", "contrast"):
+    for verification in ("whole_map", "contrast", "auto"):
         res, th, t = merged(case, verification=verification)
         assert not correct(case, th, t) and not res.accepted, (verification, th, th_fit, res.reason)

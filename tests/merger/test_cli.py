@@ -404,6 +404,8 @@ def test_align_says_no_evidence_when_the_rois_hold_no_occupied_cell(tmp_path, ca
     rc = main(["align", str(y), str(y), "--center", "0,0", "--roi", "2", "--window", "0.2"])
     out = capsys.readouterr().out
     assert rc == 1 and out.startswith("no evidence") and "50 cells of support" in out
+    # issue 36 item 4: the hint says how to choose the center and the ROI
+    assert "walls of both maps within 1 m of it, or a larger ROI (--roi, merger.roi_m; real maps: 16 m)" in out
     rc = main(["align", str(y), str(y), "--center", "0,0", "--roi", "2", "--window", "0.2", "--json"])
     assert rc == 1 and json.loads(capsys.readouterr().out)["verdict"] == "no_evidence"
 

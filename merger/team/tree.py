@@ -11,6 +11,12 @@ assembled:
 1. the verified pairs are the edges of a graph weighted by ν; its maximum spanning tree (Kruskal, ties to
    the lower indices) links every map that some chain of verified pairs links to map 0 (the merging
    robot's), and each such map's placement onto map 0 is composed along its tree path;
+   A tree edge that no loop confirms (a bridge: without it its two maps are not connected by the pose
+   graph's edges, :func:`unconfirmed_edges`) holds the maps beyond it on its evidence alone; it is kept
+   only with ν ≥ ν_min + ``BRIDGE_MARGIN``, otherwise dropped and the tree spanned again without it (the
+   maps beyond are left out until a loop confirms them or the evidence grows). In the 16-robot hall at
+   2.6 s a pair of maps 90° off verified with ν 0.500 on 298 cells (the truth: 0.463 on 136) and
+   linked two robots to the team alone: six gross false merges;
 2. every verified pair that is *not* a tree edge is a cycle of the graph: its own alignment must agree
    with the composed placements (within 10° and 0.2 m, the ambiguity rule's distances), otherwise the
    cycle is rejected as inconsistent — a false pair closes a loop that the true pairs do not;
@@ -282,6 +288,34 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
             (wrap_deg(theta[k]), (float(tt[2 * idx[k]]), float(tt[2 * idx[k] + 1]))) for k in place}
 
 
+BRIDGE_MARGIN = 0.05  # a tree edge no loop confirms needs ν ≥ ν_min + this (Cartographer: a global match
+# needs global_localization_min_score 0.6, a local one min_score 0.55); docs/limits.md, hall16
+
+
+def unconfirmed_edges(place, pairs, links, names, params) -> list[tuple[int, int]]:
+    """The tree edges (parent, child) that no loop confirms: removing the edge from the graph of the pose
+    graph's edges (:func:`loop_edges`: verified pairs and the weaker pairs agreeing with the tree) leaves
+    its two maps unconnected — the edge is a bridge, and the maps beyond it rest on its evidence alone."""
+    edges = [(i, j) for i, j, _, _ in loop_edges(place, pairs, names, params)]
+    out = []
+    for a, b in links:
+        e = (min(a, b), max(a, b))
+        nbrs: dict[int, list[int]] = {}
+        for i, j in edges:
+            if (i, j) != e:
+                nbrs.setdefault(i, []).append(j)
+                nbrs.setdefault(j, []).append(i)
+        seen, stack = {a}, [a]
+        while stack:
+            for y in nbrs.get(stack.pop(), ()):
+                if y not in seen:
+                    seen.add(y)
+                    stack.append(y)
+        if b not in seen:
+            out.append((a, b))
+    return out
+
+
 def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # noqa: B008 (frozen)
                reuse: dict | None = None, memo: Memo | None = None, tracker: Tracker | None = None,
                now: float = 0.0) -> TeamMergeResult:
@@ -370,9 +404,19 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
     edges = {ij: p.verification.nu for ij, p in pairs.items() if p.verification.passed}
-    tree = spanning_tree(len(maps), edges)
     names = [m.name for m in maps]
-    place, links = compose_tree(len(maps), tree, pairs, names)
+    weak: dict[tuple[int, int], str] = {}
+    for _ in range(len(maps)):  # drop the weak bridges, then span again (each round drops one at least)
+        tree = spanning_tree(len(maps), edges)
+        place, links = compose_tree(len(maps), tree, pairs, names)
+        drop = [e for e in ((min(a, b), max(a, b)) for a, b in unconfirmed_edges(place, pairs, links, names, params))
+                if pairs[e].verification.nu < params.nu_min + BRIDGE_MARGIN]
+        if not drop:
+            break
+        for e in drop:
+            del edges[e]
+            weak[e] = (f"{names[e[0]]}|{names[e[1]]}: only this pair links it and no loop confirms it; ν "
+                       f"{pairs[e].verification.nu:.3f} < ν_min + {BRIDGE_MARGIN:g} (a single unconfirmed link)")
     if len(place) == 1:  # no verified pair reaches map 0: report its best pair, rejected
         best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)].verification.nu, -k))
         place[best] = pair_placement(pairs[(0, best)], names, 0, best)
@@ -393,8 +437,9 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         checks[f"{sub[a].name}|{sub[b].name}"] = v
         if ij in linked and pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly
             failed.append(v.reason)
-    if any(not pairs[ij].verification.passed for ij in linked):  # the fallback pair of an unlinked map 0
-        failed += [pairs[ij].verification.reason for ij in linked if not pairs[ij].verification.passed]
+    if any(not pairs[ij].verification.passed or ij in weak for ij in linked):  # the fallback pair of an unlinked map 0
+        failed += [weak.get(ij) or pairs[ij].verification.reason for ij in linked
+                   if not pairs[ij].verification.passed or ij in weak]
     failed += inconsistent
     if failed and tracker is not None:  # the local answers this refused cycle used are searched globally next
         for ij, p in pairs.items():

@@ -318,6 +318,13 @@ def cmd_score(args) -> int:
 
     if args.every <= 0:
         raise ValueError(f"--every: expected a number of seconds > 0, got {args.every:g}")
+    if args.json:  # never over an input (the truth, the transforms, a bag's files)
+        from merger.io.mapio import check_outputs
+
+        run_files = [*args.run.iterdir()] if args.run.is_dir() else [args.run]
+        merged = [*args.merged_bag.iterdir()] if args.merged_bag and args.merged_bag.is_dir() else []
+        check_outputs({args.json: "--json"}, {p: "RUN" for p in run_files} | {p: "--merged-bag" for p in merged}
+                      | ({args.transforms: "--transforms"} if args.transforms else {}))
     truth = scoring.load_truth(args.run)
     if args.transforms:
         estimates = scoring.read_transforms(args.transforms, truth)

@@ -178,3 +178,11 @@ def test_merged_bag_scores_right_and_wrong_placements(run, tmp_path, capsys):
         assert d["robots"][k]["first_merge_s"] == pytest.approx(t_last)
         assert d["robots"][k]["false_merges"] == 1 and d["robots"][k]["gross_merges"] == 1
     assert "false merges 3 (3 gross)" in capsys.readouterr().out
+
+
+def test_scores_never_overwrite_an_input(run, capsys):
+    _, _, out, _ = run
+    before = (out / "circsim_truth.yaml").read_bytes()
+    assert main(["score", str(out), "--transforms", str(out / MERGES_FILE), "--json", str(out / "circsim_truth.yaml")]) == 2
+    assert "is also an input" in capsys.readouterr().err
+    assert (out / "circsim_truth.yaml").read_bytes() == before

@@ -196,6 +196,8 @@ def cmd_run(args) -> int:
     try:
         res = Simulation(sc, observers).run()
     except ValueError as e:
+        if bag is not None:
+            bag.abort()
         if recorder is not None and recorder.stuck:  # nothing was run yet; rerun's exit hook would block forever
             print(f"circsim: error: {e}", file=sys.stderr, flush=True)
             sys.stdout.flush()

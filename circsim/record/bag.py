@@ -238,6 +238,13 @@ class BagRecorder(Observer):
                         "(x_i = R(yaw) x_j + (x, y)); theta_deg, t_m: about the given centers, x_i = c_i + t + "
                         "R(theta)(x_j - c_j), as circsim's metrics judge a merge"}
 
+    def abort(self) -> None:
+        """The run failed before its end: no bag, and no temporary folder left behind."""
+        if self.writer is not None:
+            self.writer.abort()
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp.parent, ignore_errors=True)
+
     def on_end(self, result) -> None:
         import yaml
 

@@ -155,3 +155,19 @@ def test_cli_without_rosbags_says_how_to_install(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'pip install -e ".[ros]"' in err[0]
     assert not (tmp_path / "b").exists()
+
+
+def test_a_failed_run_leaves_no_bag_and_no_temporary_folder(tmp_path):
+    from circsim.events import Observer
+
+    class Boom(Observer):
+        def on_tick(self, t, step, ticks):
+            if step == 3:
+                raise ValueError("boom")
+
+    sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides(["duration_s=1"])
+    bag = BagRecorder(tmp_path / "b")
+    with pytest.raises(ValueError, match="boom"):
+        Simulation(sc, [bag, Boom()]).run()
+    bag.abort()
+    assert list(tmp_path.iterdir()) == []

@@ -84,13 +84,23 @@ def warp_grid(moving: OccupancyGrid, theta_deg: float, center_moving, center_tar
     return OccupancyGrid(states, target.resolution, target.origin)
 
 
+WARP_BLOCK_CELLS = 1 << 20  # the numpy warp's working arrays (~70 bytes a cell) cover this many cells at once
+
+
 def warp_grid_numpy(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
                     target: OccupancyGrid) -> OccupancyGrid:
-    """:func:`warp_grid` in plain numpy, every cell by :func:`sample_nearest` (the yardstick)."""
-    rows, cols = np.indices(target.shape)
-    pts_target = target.cell_center(rows, cols)
-    pts_moving = apply_alignment(pts_target, -theta_deg, center_target, center_moving)
-    return OccupancyGrid(sample_nearest(moving, pts_moving), target.resolution, target.origin)
+    """:func:`warp_grid` in plain numpy, every cell by :func:`sample_nearest` (the yardstick). Computed in
+    blocks of rows of about :data:`WARP_BLOCK_CELLS` cells: each cell is its own computation, so the states
+    are the same, and the working arrays stay ~70 MB (a 4224² target took 1.2 GB at once, per thread)."""
+    h, w = target.shape
+    out = np.empty((h, w), np.uint8)
+    step = max(1, WARP_BLOCK_CELLS // max(w, 1))
+    for r0 in range(0, h, step):
+        rows, cols = np.indices((min(step, h - r0), w))
+        pts_target = target.cell_center(rows + r0, cols)
+        out[r0:r0 + step] = sample_nearest(moving, apply_alignment(pts_target, -theta_deg, center_target,
+                                                                   center_moving))
+    return OccupancyGrid(out, target.resolution, target.origin)
 
 
 _WARP_EPS = 1.0 / 512  # OpenCV computes the source point to ~3e-4 cell or better (float32)

@@ -178,9 +178,25 @@ def read_image(path: Path, yaml_path: Path) -> np.ndarray:
         raise MapFileError(f"{path}: not a readable image (PGM, PNG, ...)")
     if img.ndim == 3:  # map_server averages colour channels (alpha ignored)
         img = img[..., :3].mean(axis=2)
-    if img.dtype == np.uint16:
-        img = img / 257.0
-    return np.asarray(img, np.float64)
+    return img  # grey levels as read (uint8, uint16) or a float64 mean: _grey makes them 0..255
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    """Grey levels 0..255 (float64) of an image's pixels: 16-bit ones scaled down."""
+    return img / 257.0 if img.dtype == np.uint16 else np.asarray(img, np.float64)
+
+
+def _pixel_states(pixels: np.ndarray, meta: dict) -> np.ndarray:
+    """map_server's rule: the state of each grey level (0..255, float64) of ``pixels``."""
+    if meta["mode"] == "raw":
+        raw = np.rint(pixels).astype(np.int16)
+        data = np.where(raw <= 100, raw, -1)
+        return states_from_ros(data, occupied_thresh=meta["occupied_thresh"], free_thresh=meta["free_thresh"])
+    p = pixels / 255.0 if meta["negate"] else (255.0 - pixels) / 255.0
+    states = np.full(p.shape, UNKNOWN_S, np.uint8)
+    states[p < meta["free_thresh"]] = FREE_S
+    states[p > meta["occupied_thresh"]] = OCCUPIED_S
+    return states
 
 
 def pgm_resolution(path: Path) -> float | None:
@@ -213,19 +229,15 @@ def load_map(path) -> OccupancyGrid:
     path = Path(path)
     meta = read_metadata(path)
     img_path = path.parent / meta["image"]
-    pixels = np.flipud(read_image(img_path, path))
+    img = np.flipud(read_image(img_path, path))
     check_image_resolution(meta, img_path, path)
-    if pixels.size == 0:
+    if img.size == 0:
         raise MapFileError(f"{img_path}: an empty image (0 cells)")
-    if meta["mode"] == "raw":
-        raw = np.rint(pixels).astype(np.int16)
-        data = np.where(raw <= 100, raw, -1)
-        states = states_from_ros(data, occupied_thresh=meta["occupied_thresh"], free_thresh=meta["free_thresh"])
+    if img.dtype in (np.uint8, np.uint16):  # the rule once per grey level, then a look-up: the same states
+        levels = np.arange(np.iinfo(img.dtype).max + 1, dtype=img.dtype)  # without float copies of the image
+        states = _pixel_states(_grey(levels), meta)[img]
     else:
-        p = pixels / 255.0 if meta["negate"] else (255.0 - pixels) / 255.0
-        states = np.full(p.shape, UNKNOWN_S, np.uint8)
-        states[p < meta["free_thresh"]] = FREE_S
-        states[p > meta["occupied_thresh"]] = OCCUPIED_S
+        states = _pixel_states(_grey(img), meta)
     return OccupancyGrid(np.ascontiguousarray(states), meta["resolution"], tuple(meta["origin"][:2]))
 
 

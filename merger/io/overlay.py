@@ -30,20 +30,30 @@ def colours_for(names: list[str]) -> list[tuple[tuple[int, int, int], tuple[int,
     return out
 
 
+OVERLAY_BLOCK_CELLS = 1 << 20  # cells coloured at once: the float sums of a block, not of a 4224² canvas (1.7 GB)
+
+
 def overlay_rgb(layers: list[np.ndarray], names: list[str]) -> np.ndarray:
-    """(H, W, 3) uint8 RGB in ROS row order (row 0 = lowest y) of aligned state layers."""
+    """(H, W, 3) uint8 RGB in ROS row order (row 0 = lowest y) of aligned state layers (computed in blocks of
+    rows: each cell's colour is its own mean)."""
     if len(layers) != len(names):
         raise ValueError("one name per layer")
-    acc = np.zeros((*layers[0].shape, 3), np.float64)
-    known = np.zeros(layers[0].shape, np.float64)
-    for states, (occ, free) in zip(layers, colours_for(names), strict=True):
-        for mask, col in ((states == OCCUPIED_S, occ), (states == FREE_S, free)):
-            acc[mask] += col
-            known[mask] += 1
-    out = np.empty_like(acc, dtype=np.uint8)
-    seen = known > 0
-    out[seen] = np.rint(acc[seen] / known[seen, None]).astype(np.uint8)
-    out[~seen] = UNKNOWN_RGB
+    h, w = layers[0].shape
+    out = np.empty((h, w, 3), np.uint8)
+    colours = colours_for(names)
+    step = max(1, OVERLAY_BLOCK_CELLS // max(w, 1))
+    for r0 in range(0, h, step):
+        acc = np.zeros((min(step, h - r0), w, 3), np.float64)
+        known = np.zeros(acc.shape[:2], np.float64)
+        for states, (occ, free) in zip(layers, colours, strict=True):
+            block = states[r0:r0 + step]
+            for mask, col in ((block == OCCUPIED_S, occ), (block == FREE_S, free)):
+                acc[mask] += col
+                known[mask] += 1
+        part = out[r0:r0 + step]
+        seen = known > 0
+        part[seen] = np.rint(acc[seen] / known[seen, None]).astype(np.uint8)
+        part[~seen] = UNKNOWN_RGB
     return out
 
 
@@ -57,12 +67,15 @@ def overlay_picture(layers: list[np.ndarray], names: list[str], resolution: floa
     """
     import cv2
 
-    rgb = overlay_rgb(layers, names)
-    rows, cols = np.nonzero(np.any(np.stack(layers) > 0, axis=0))
-    if rows.size:
+    known = np.zeros(layers[0].shape, bool)
+    for states in layers:
+        known |= states > 0
+    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+    if rows.size:  # each cell's colour is its own: crop first, colour the crop
         r0, r1 = max(rows.min() - margin_cells, 0), rows.max() + margin_cells + 1
         c0, c1 = max(cols.min() - margin_cells, 0), cols.max() + margin_cells + 1
-        rgb = rgb[r0:r1, c0:c1]
+        layers = [states[r0:r1, c0:c1] for states in layers]
+    rgb = overlay_rgb(layers, names)
     h, w = rgb.shape[:2]
     px = cell_px or max(1, min(4, max_px // max(h, w, 1)))
     body = cv2.resize(np.ascontiguousarray(np.flipud(rgb)), None, fx=px, fy=px, interpolation=cv2.INTER_NEAREST)

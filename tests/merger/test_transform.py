@@ -80,3 +80,42 @@ def test_resample_keeps_walls_and_follows_the_ternary_rule():
     assert resample(g, 0.05) is g
     odd = resample(g, 0.07)  # not a whole ratio: round(side x 0.05 / 0.07) cells
     assert odd.shape == (round(4 * 5 / 7), round(6 * 5 / 7)) and (odd.states == OCCUPIED_S).sum() == 1
+
+
+# issue 37, item 6: a 4224² map's numpy warp held 1.2 GB of working arrays at once (per thread: 3.3 GB for a
+# merge of three); it now works through blocks of rows
+def _warp_at_once(moving, theta, cm, ct, target):
+    """The warp as it was computed before blocks: every target cell at once."""
+    rows, cols = np.indices(target.shape)
+    pts = apply_alignment(target.cell_center(rows, cols), -theta, ct, cm)
+    return sample_nearest(moving, pts)
+
+
+@pytest.mark.parametrize("theta", [0.0, 33.3, 90.0, 211.7])
+def test_the_numpy_warp_in_blocks_is_the_warp_at_once(monkeypatch, theta):
+    import merger.transform as T
+
+    rng = np.random.default_rng(int(theta))
+    mov = OccupancyGrid(rng.integers(0, 3, (97, 131)).astype(np.uint8), 0.05, (-1.3, 0.7))
+    target = OccupancyGrid(np.zeros((113, 89), np.uint8), 0.05, (-2.0, -0.4))
+    cm, ct = (0.93, 2.71), (0.2, 1.1)
+    want = _warp_at_once(mov, theta, cm, ct, target)
+    for cells in (1, 89 * 7 + 3, 1 << 20):  # one row a block, a ragged last block, one block
+        monkeypatch.setattr(T, "WARP_BLOCK_CELLS", cells)
+        assert np.array_equal(T.warp_grid_numpy(mov, theta, cm, ct, target).states, want)
+
+
+def test_the_numpy_warp_of_a_large_target_holds_a_block_not_the_map():
+    import tracemalloc
+
+    from merger.transform import warp_grid_numpy
+
+    mov = OccupancyGrid(np.ones((300, 300), np.uint8), 0.05, (0.0, 0.0))
+    target = OccupancyGrid(np.zeros((2500, 2500), np.uint8), 0.05, (-50.0, -50.0))  # 6.25 M cells
+    tracemalloc.start()
+    try:
+        warp_grid_numpy(mov, 30.0, (7.5, 7.5), (7.5, 7.5), target)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 150 << 20, peak / 2**20  # at once: ~440 MB (8-byte indices, points, cells)

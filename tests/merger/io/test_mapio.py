@@ -208,3 +208,53 @@ def test_one_qualitative_palette_in_the_overlay_and_the_recording():
     import circsim.record.entities as entities
 
     assert entities.PALETTE is PALETTE
+
+
+def _states_by_the_rule(grey: np.ndarray, meta: dict) -> np.ndarray:
+    """map_server's rule on float grey levels, as load_map applied it to a float64 copy of the image."""
+    if meta["mode"] == "raw":
+        raw = np.rint(grey).astype(np.int16)
+        from merger.grid import states_from_ros
+
+        return states_from_ros(np.where(raw <= 100, raw, -1), occupied_thresh=meta["occupied_thresh"],
+                               free_thresh=meta["free_thresh"])
+    p = grey / 255.0 if meta["negate"] else (255.0 - grey) / 255.0
+    return np.where(p < meta["free_thresh"], F, np.where(p > meta["occupied_thresh"], O, U)).astype(np.uint8)
+
+
+@pytest.mark.parametrize("mode, negate", [("trinary", 0), ("trinary", 1), ("raw", 0)])
+@pytest.mark.parametrize("bits", [8, 16])
+def test_the_grey_level_lookup_gives_the_rule_s_states(tmp_path, mode, negate, bits):
+    """load_map applies map_server's rule once per grey level and looks the image up (issue 37: the float64
+    copies of a 4224² image took 0.45 GB); every level of an 8-bit image and a spread of 16-bit ones give
+    the states of the rule itself, thresholds on level boundaries included."""
+    import cv2
+
+    if bits == 8:
+        img = np.arange(256, dtype=np.uint8).reshape(16, 16)
+        name = "m.pgm"
+    else:
+        img = np.concatenate([np.arange(0, 65536, 97), [65535, 257 * 50, 257 * 166]]).astype(np.uint16)
+        img = np.resize(img, (26, 27))
+        name = "m.png"
+    cv2.imwrite(str(tmp_path / name), img)
+    meta = {"mode": mode, "negate": negate, "occupied_thresh": 166 / 255, "free_thresh": 50 / 255}
+    (tmp_path / "m.yaml").write_text(f"image: {name}\nresolution: 0.05\norigin: [0, 0, 0]\nmode: {mode}\n"
+                                     f"negate: {negate}\noccupied_thresh: {166 / 255!r}\nfree_thresh: {50 / 255!r}\n")
+    grey = img / 257.0 if bits == 16 else img.astype(np.float64)
+    want = np.flipud(_states_by_the_rule(grey, meta))
+    assert np.array_equal(load_map(tmp_path / "m.yaml").states, want)
+
+
+def test_loading_a_large_map_makes_no_float_copy_of_its_image(tmp_path):
+    import tracemalloc
+
+    g = OccupancyGrid(np.tile(np.array([[U, F], [O, F]], np.uint8), (1000, 1000)), 0.05, (0.0, 0.0))
+    path = save_map(g, tmp_path / "big")[0]
+    tracemalloc.start()
+    try:
+        assert np.array_equal(load_map(path).states, g.states)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 << 20, peak / 2**20  # 4 M cells: the states (4 MB) and masks; float64 copies were 96 MB

@@ -687,6 +687,20 @@ def cmd_demo(args) -> int:
     return 0 if res.accepted else 1
 
 
+def exit_now(code: int) -> None:
+    """End the process at once with ``code``: Python's exit would first wait for the merge pool's threads to
+    finish the searches they are running (compiled kernels cannot be interrupted). Nothing is lost: every
+    output is written whole or not at all."""
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(join_negative_xy(sys.argv[1:] if argv is None else list(argv)))
@@ -705,6 +719,8 @@ def main(argv=None) -> int:
         return 2
     except KeyboardInterrupt:
         print("merger: interrupted", file=sys.stderr)
+        if argv is None:  # the program: out now, not after the pool's searches still running (26 s on 4224² maps)
+            exit_now(130)
         return 130
 
 

@@ -237,7 +237,7 @@ BASE = load_scenario(bundled_scenarios()["scene1"])
 
 
 @pytest.mark.parametrize("sets,needle", [
-    (["dt_s=5", "duration_s=1"], "dt_s: expected a number <= duration_s"),
+    (["dt_s=1", "duration_s=0.5"], "dt_s: expected a number <= duration_s"),
     (["robots.speed_mps=1e6"], "robots.speed_mps: expected a number in (0, 2]"),
     (["robots.body_radius_m=1e-7"], "robots.body_radius_m: expected a number >= 0.05"),
     (["center_error.magnitude_m=1e6"], "center_error.magnitude_m: expected a number in [0, 4]"),

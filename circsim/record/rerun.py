@@ -349,11 +349,12 @@ class RerunRecorder(Observer):
         rec, self.rec = self.rec, None
         main = threading.current_thread() is threading.main_thread()
         old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        flush_error = None
         try:
             try:
                 rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
             except RuntimeError as e:  # e.g. the live viewer was closed: the file sink is unaffected
-                print(f"circsim: rerun: {e}", file=sys.stderr)
+                flush_error = e
             try:
                 _within(rec.disconnect, DISCONNECT_TIMEOUT_S)
             except TimeoutError:  # rerun's file writer died during the run (a full disk): it never returns
@@ -365,6 +366,8 @@ class RerunRecorder(Observer):
                                     "full disk?); nothing replaced")
                 return
             self._place_recording()
+            if flush_error is not None and self.write_error is None:  # (a failed file: its own error line)
+                print(f"circsim: rerun: {flush_error}", file=sys.stderr)
         finally:
             release(self._part_fd)
             self._part_fd = None

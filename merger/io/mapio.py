@@ -350,7 +350,7 @@ def write_files(files: dict) -> list[Path]:
         for tmp, path in temps:
             os.replace(tmp, path)
             placed.append(path)
-    except OSError as e:
+    except BaseException as e:  # a full disk, or Ctrl-C meanwhile: no temporary file is left behind
         for p in placed:  # a rename failed after others: take those back (none or all)
             p.unlink(missing_ok=True)
         for tmp, _ in temps:
@@ -358,6 +358,8 @@ def write_files(files: dict) -> list[Path]:
                 os.unlink(tmp)
             except OSError:
                 pass
+        if not isinstance(e, OSError):
+            raise
         raise MapFileError(f"{e.filename or path}: cannot write ({e.strerror or e})") from None
     return [p for _, p in temps]
 

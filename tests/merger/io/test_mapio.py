@@ -258,3 +258,24 @@ def test_loading_a_large_map_makes_no_float_copy_of_its_image(tmp_path):
     finally:
         tracemalloc.stop()
     assert peak < 20 << 20, peak / 2**20  # 4 M cells: the states (4 MB) and masks; float64 copies were 96 MB
+
+
+def test_an_interrupt_while_writing_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """Ctrl-C between two renames (merger now exits at once on it): the temporary files went only on an
+    OSError, and a KeyboardInterrupt left `.NAME.XXXX.part` files behind."""
+    import os
+
+    from merger.io import mapio
+
+    real, calls = os.replace, []
+
+    def replace(a, b):
+        calls.append(b)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        real(a, b)
+
+    monkeypatch.setattr(mapio.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        mapio.write_files({tmp_path / "a.txt": b"a", tmp_path / "b.txt": b"b", tmp_path / "c.txt": b"c"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -445,8 +445,9 @@ def verdict_line(res) -> str:
     """The cycle's verdict: the chosen order and the rule that accepted it, or the rule that refused it and
     its figures."""
     if res.chosen is not None:
-        return (f"chosen: {'→'.join(res.chosen.order)} (accepted by {rule_of(res.chosen.checks.values())}: "
-                + "; ".join(evidence_text(v, k) for k, v in res.chosen.checks.items()) + ")")
+        ev = "; ".join(evidence_text(v, k) for k, v in res.chosen.checks.items())  # none: merger.algorithms
+        return f"chosen: {'→'.join(res.chosen.order)} (accepted by {rule_of(res.chosen.checks.values())}" \
+            + (f": {ev})" if ev else ")")
     return f"REJECTED by {refusal(res)}"
 
 

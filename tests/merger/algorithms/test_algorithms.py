@@ -143,3 +143,23 @@ def test_registry_and_online_merger(office):
     assert res.accepted and m.current is res and len(m._answers) == 1
     with pytest.raises(ValueError, match="algorithm must be one of"):
         merge("orb", [ref, mov])
+
+
+def test_merger_merge_algorithm_option(office, tmp_path, capsys):
+    from merger.cli import main
+    from merger.io.mapio import map_files, write_files
+
+    ref, mov, yaw = office
+    write_files({**map_files(ref.grid, tmp_path / "ref.yaml"), **map_files(mov.grid, tmp_path / "mov.yaml")})
+    centers = [f"{ref.center[0]:.6f},{ref.center[1]:.6f}", f"{mov.center[0]:.6f},{mov.center[1]:.6f}"]
+    args = [str(tmp_path / "ref.yaml"), str(tmp_path / "mov.yaml"), "--center", centers[0], "--center", centers[1]]
+    assert main(["merge", *args, "--algorithm", "hough", "-o", str(tmp_path / "h")]) == 0
+    assert (tmp_path / "h.yaml").exists()
+    assert "accepted by the algorithm's own rule (merger.algorithms))" in capsys.readouterr().out
+    rng = np.random.default_rng(3)
+    noise = OccupancyGrid(rng.choice(3, size=(120, 120), p=[0.6, 0.3, 0.1]).astype(np.uint8), 0.05, (0.0, 0.0))
+    write_files(map_files(noise, tmp_path / "noise.yaml"))
+    assert main(["merge", str(tmp_path / "ref.yaml"), str(tmp_path / "noise.yaml"), "--center", centers[0],
+                 "--center", "3,3", "--algorithm", "features", "-o", str(tmp_path / "f")]) == 1
+    out = capsys.readouterr().out
+    assert "features:" in out and not (tmp_path / "f.yaml").exists()

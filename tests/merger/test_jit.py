@@ -13,7 +13,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numba
 from numba.core.registry import CPUDispatcher
 
 import circsim
@@ -142,4 +141,4 @@ def test_every_kernel_of_merger_and_circsim_goes_through_the_guarded_cache():
                     found += 1
                     assert isinstance(value._cache, GuardedCache), f"{name}.{attr}"
                     assert value.targetoptions.get("nogil") and not value.targetoptions.get("fastmath"), attr
-    assert found >= 30 and numba.__version__
+    assert found >= 30  # merger's search and evidence kernels, circsim's scan matcher

@@ -108,6 +108,7 @@ class Tracker:
     drop: float = RESEARCH_DROP
     tracks: dict = field(default_factory=dict)
     events: list = field(default_factory=list)  # (time, text): taken by the caller (take_events)
+    team_place: dict = field(default_factory=dict)  # the last accepted team placement, map name → (θ, t)
     _rois: dict = field(default_factory=dict, repr=False)  # (name, version, center, n) → ROI states
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 

@@ -65,6 +65,7 @@ from .orders import (
     Warps,
     _beyond,
     _pair_key,
+    compose,
     place_on_frame0,
     problem_for,
     refine_chosen,
@@ -100,11 +101,11 @@ class PairResult:
 
 
 def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps: Warps,
-                around: Alignment | None = None) -> PairResult:
+                around: tuple[float, tuple[int, int]] | None = None) -> PairResult:
     """Search map j onto map i (raw maps) and verify the alignment on the whole maps in i's frame; an
     ambiguous pair is resolved by that verification under both hypotheses (:func:`merger.team.ambiguity.resolve`).
-    ``around``: an earlier answer of the pair — the search is then the exact local search about it
-    (:func:`merger.search.local.local_search`, the tracker's re-verification: no runner-up, no guard)."""
+    ``around``: (θ°, (a, b) cells), an earlier answer of the pair — the search is then the exact local search
+    about it (:func:`merger.search.local.local_search`, the tracker's re-verification: no runner-up, no guard)."""
     label = f"{maps[i].name}|{maps[j].name}"
 
     def check(al: Alignment) -> Verification:
@@ -117,7 +118,7 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
 
     prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
     if around is not None:
-        al, amb = local_search(prob, around.theta_grid_deg, around.cells), None
+        al, amb = local_search(prob, around[0], around[1]), None
     else:
         al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
     ver = check(al)
@@ -221,6 +222,32 @@ def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], Pa
         if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
             out.append(f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
                        f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement")
+    return out
+
+
+def loop_pairs(place, pairs, tree, links, names) -> set[tuple[int, int]]:
+    """The pairs of the inconsistent loops (:func:`inconsistencies`): each inconsistent verified pair (i, j)
+    and the tree edges on the path from i to j."""
+    parent = {b: a for a, b in links}
+    in_tree = set(tree)
+
+    def up(k):
+        path = [k]
+        while path[-1] in parent:
+            path.append(parent[path[-1]])
+        return path
+
+    out = set()
+    for (i, j), p in pairs.items():
+        if not p.verification.passed or (i, j) in in_tree or i not in place or j not in place:
+            continue
+        dth, dt = disagreement(place, p, names, i, j)
+        if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
+            out.add((i, j))
+            pi, pj = up(i), up(j)
+            common = next(k for k in pi if k in set(pj))
+            for path in (pi[:pi.index(common) + 1], pj[:pj.index(common) + 1]):
+                out |= {(min(a, b), max(a, b)) for a, b in zip(path, path[1:])}
     return out
 
 
@@ -359,11 +386,22 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         return memo.get(("tree-pair", map_key(maps[r]), map_key(maps[m]), params),
                         lambda: pair_result(maps, r, m, params, warps))
 
-    def compute_local(r, m, around: Alignment):
+    def compute_local(r, m, around):
+        """The local search about ``around`` (θ°, cells), shared with teammates through the memo."""
         if memo is None:
             return pair_result(maps, r, m, params, warps, around)
-        return memo.get(("tree-pair-local", map_key(maps[r]), map_key(maps[m]), params, around.theta_grid_deg,
-                         around.cells), lambda: pair_result(maps, r, m, params, warps, around))
+        return memo.get(("tree-pair-local", map_key(maps[r]), map_key(maps[m]), params, around),
+                        lambda: pair_result(maps, r, m, params, warps, around))
+
+    def composed(r, m):
+        """Where the team placement the robot holds puts map m relative to map r, on the search's grid
+        (whole degrees and cells: teammates holding nearly the same placement share the search), or None."""
+        tp = tracker.team_place
+        if maps[r].name not in tp or maps[m].name not in tp:
+            return None
+        th, t = compose({0: tp[maps[r].name], 1: tp[maps[m].name]}, 0, 0)[1]
+        res = maps[r].grid.resolution
+        return (float(round(th) % 360), (int(round(t[0] / res)), int(round(t[1] / res))))
 
     def tracked(task):
         """The pair's result under the tracker (merger.team.track): local re-verification, global when due."""
@@ -371,8 +409,21 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         key, sub = f"{maps[r].name}|{maps[m].name}", (maps[r], maps[m])
         tr = tracker.track(key)
         local, local_ok = None, False
+        if tr.tracked is None and tr.last is not None and now - tr.global_s < tracker.period_s - 1e-9:
+            # never verified, but the team placement links both maps (Cartographer: trajectories already
+            # connected are matched locally, from their current relative pose): a local search there,
+            # a global one only at the staleness bound; a verified answer there is followed from then on
+            at = composed(r, m)
+            if at is not None:
+                loc = compute_local(r, m, at)
+                tr.locals += 1
+                if loc.verification.passed:
+                    tr.tracked, tr.placement, tr.nu_ref = loc, _placement(loc), loc.verification.nu
+                    tracker.accepted(tr, tr.placement)
+                tr.last = loc
+                return loc
         if tr.tracked is not None:
-            local = compute_local(r, m, tr.tracked.alignment)
+            local = compute_local(r, m, (tr.tracked.alignment.theta_grid_deg, tr.tracked.alignment.cells))
             local_ok = local.verification.passed and local.verification.nu >= tr.nu_ref - tracker.drop
             if local_ok and not tracker.due(tr, sub, params.roi_m, now):
                 tr.locals += 1
@@ -429,6 +480,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     sub_place = {s: place[k] for s, k in enumerate(order)}
     sw = Warps(sub)
     checks, failed = {}, []
+    suspects: set[tuple[int, int]] = set()
     linked = {(min(a, b), max(a, b)) for a, b in links}
     for a, b in pairwise(sub):
         ij = (min(order[a], order[b]), max(order[a], order[b]))
@@ -437,19 +489,25 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         checks[f"{sub[a].name}|{sub[b].name}"] = v
         if ij in linked and pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly
             failed.append(v.reason)
+            suspects.add(ij)
     if any(not pairs[ij].verification.passed or ij in weak for ij in linked):  # the fallback pair of an unlinked map 0
         failed += [weak.get(ij) or pairs[ij].verification.reason for ij in linked
                    if not pairs[ij].verification.passed or ij in weak]
     failed += inconsistent
-    if failed and tracker is not None:  # the local answers this refused cycle used are searched globally next
-        for ij, p in pairs.items():
+    if inconsistent:  # every pair of an inconsistent loop: the non-tree pair and the tree path it closes
+        suspects |= loop_pairs(place, pairs, tree, links, names)
+    if tracker is not None:  # a local answer the assembly found wrong is searched globally at the next version
+        for ij in suspects:
+            p = pairs[ij]
             if p.alignment.method.endswith("-local"):
-                tracker.track(f"{p.ref}|{p.moving}").recheck = "the team's assembly refused a cycle that used it"
+                tracker.track(f"{p.ref}|{p.moving}").recheck = "the team's assembly found it inconsistent or failing"
     steps = tuple((p.moving, p.alignment) for p in (pairs[(min(a, b), max(a, b))] for a, b in links))
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
     chosen, merged, layers = (result, None, {}) if result.accepted and not guard else (None, None, {})
+    if chosen is not None and tracker is not None:
+        tracker.team_place = {maps[k].name: place[k] for k in order}
     if chosen is not None:
         chosen, sub_place = refine_chosen(sub, sub_place, sw, params, chosen)
         result = chosen

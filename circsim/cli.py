@@ -110,6 +110,14 @@ def summary(res) -> str:
                  + ("   shared hypotheses adopted " + ", ".join(f"{n} {r['hypotheses_adopted']}/{r['hypotheses_received']}"
                                                         for n, r in d["robots"].items())
                     if any(r["hypotheses_received"] for r in d["robots"].values()) else ""))
+    lat, tr, j = d.get("latency_s") or {}, d.get("tracking") or {}, d.get("placement_jump") or {}
+    if lat.get("count"):
+        lines.append(f"map version to its first verified merge: median {lat['median']:.1f} s, p95 {lat['p95']:.1f} s"
+                     + (f"; placement jumps p95 {j['deg_p95']:.2f}° / {100 * j['m_p95']:.1f} cm"
+                        if j.get("count") else ""))
+    if tr.get("per_robot"):
+        lines.append(f"tracking (merger.research on_change): {tr['global_searches']} global searches, "
+                     f"{tr['local_checks']} local re-verifications, {tr['switches']} switches (summed over the robots)")
     return "\n".join(lines)
 
 

@@ -50,6 +50,36 @@ CONSTRAINTS = """
 """
 
 
+RESEARCH = """
+## When pairs are searched again (`merger.research`)
+
+- `on_change` (the default): a pair of maps (the `tree` strategy) or the team's hypothesis (`orders`) that
+  holds an accepted answer is *re-verified* at each new map version: an exact local search about the
+  answer (±3° and ±3 cells, the same measure, 0.1° step and sub-cell refinement; `merger.search.local`) and
+  the whole-map verification. A global search runs when (a) that fails, or its ν falls more than
+  `research_drop` ({drop:g}) below the last global search's; (b) either map's region of interest changed
+  by more than `research_change` ({change:g}: that fraction of its known cells changed state) since the
+  last global search; (c) `research_period_s` ({period:g} s) passed since it; (d) a global answer that
+  disagreed awaits a second one (a different answer replaces the tracked one only when two global searches
+  find it and it verifies with a higher ν: hysteresis; each switch is an event in the run's log), or the
+  team's assembly found the pair inconsistent. The first merge of a pair is always a global search's
+  answer. A pair that never verified is searched again when a map's ROI changed by a quarter of
+  `research_change`, or, when the held team placement already links its two maps, locally from that
+  relative pose (globally at the staleness bound).
+- `every_version`: every map version is searched globally — the thesis's behaviour; `scene1`, `scene2`
+  and their `-thesis` variants pin it.
+
+Anchors: Cartographer (`pose_graph.lua`, `constraint_builder_2d.cc`) searches globally only for
+trajectories not connected within `global_constraint_search_after_n_seconds` = 10 s and otherwise matches
+locally from the current relative pose (our `research_period_s`); its global matches need
+`global_localization_min_score` 0.6 against `min_score` 0.55 for local ones (the tree's stricter ν for an
+edge that no loop confirms). m-explore's `map_merge` re-estimates at 0.5 Hz and overwrites its estimate
+with every new one; its users report merged maps that jump (hrnr/m-explore #22): hence the hysteresis.
+Swarm-SLAM retries a failed candidate only when its maps grow (the change rule for pairs never verified).
+What tracking costs in quality is measured by `benchmarks/bench_tracking.py` (docs/performance-history.md).
+"""
+
+
 # Defaults that follow another key: the table says which (the default scenario's value would mislead).
 DERIVED_DEFAULTS = {"world.room.center": "(`world.center`)"}
 
@@ -137,4 +167,5 @@ def scenario_reference() -> str:
         parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
     parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS,
                                     body=S.MIN_BODY_RADIUS_M, speed=S.MAX_SPEED_MPS))
+    parts.append(RESEARCH.format(drop=S.RESEARCH_DROP, change=S.RESEARCH_CHANGE, period=S.RESEARCH_PERIOD_S))
     return "".join(parts)

@@ -1,0 +1,36 @@
+"""The bench under ``merger.research: on_change`` (issue 33): the same first merges as searching every map
+version, no more false merges, and the tracker's work and the latency in the metrics."""
+
+from __future__ import annotations
+
+from circsim.config.scenario import bundled_scenarios, load_scenario
+from circsim.sim import Simulation
+
+
+def _run(name, *sets):
+    sc = load_scenario(bundled_scenarios()[name]).with_overrides(list(sets))
+    return Simulation(sc).run().to_dict()
+
+
+def test_tracking_merges_as_early_as_searching_every_version_with_no_more_false_merges():
+    sets = ("duration_s=12", "merger.window_m=0.5", "center_error=0.15")
+    old = _run("hall4", *sets, "merger.research=every_version")
+    new = _run("hall4", *sets, "merger.research=on_change")
+    period = new["params"]["network"]["period_s"]
+    for n, r in old["robots"].items():
+        assert r["first_merge_s"] is not None
+        t = new["robots"][n]["first_merge_s"]
+        assert t is not None and t <= r["first_merge_s"] + period, (n, t, r["first_merge_s"])
+    assert new["false_merges"] <= old["false_merges"]
+    tr = new["tracking"]
+    assert tr["local_checks"] > 0 and tr["global_searches"] > 0
+    assert old["tracking"]["per_robot"] == {}  # every_version: no tracker
+    assert new["latency_s"]["count"] > 0 and new["latency_s"]["p95"] <= period + 1.0
+    assert new["placement_jump"]["count"] > 0
+
+
+def test_the_thesis_scenes_search_every_version():
+    for name in ("scene1", "scene2", "scene1-thesis", "scene2-thesis"):
+        sc = load_scenario(bundled_scenarios()[name])
+        assert sc.merger.research == "every_version", name
+    assert load_scenario(bundled_scenarios()["hall8"]).merger.research == "on_change"

@@ -78,7 +78,7 @@ def njit(*, cache: bool = True, nogil: bool = True):
 
     def wrap(func):
         disp = numba.njit(nogil=nogil)(func)
-        if cache:
+        if cache and hasattr(disp, "enable_caching"):  # (NUMBA_DISABLE_JIT=1 gives the function itself)
             try:
                 disp._cache = GuardedCache(func)  # what numba's Dispatcher.enable_caching() does
             except RuntimeError as exc:  # numba: "cannot cache function …: no locator available …"

@@ -147,6 +147,10 @@ def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> Non
     p.add_argument("--no-refine", dest="refine", action="store_false",
                    help="report the search grid's answer (θ on the 0.1° grid, t in whole cells) without the "
                         "sub-cell refinement")
+    p.add_argument("--no-refine-whole", dest="refine_whole", action="store_false",
+                   help="merge at the search's placement instead of its refinement on the whole maps (the "
+                        "thesis; by default a placement the contrast rule accepted is refined within ±5° and "
+                        "±1 m, at most twice --window, and the search's is reported beside it)")
     if orders:
         p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false",
                        help="keep the highest-Σν order's own placement (the thesis's rule) instead of the "
@@ -245,7 +249,7 @@ def params_from(args) -> MergeParams:
                            min_support=args.min_support, window_m=args.window, refine=args.refine,
                            combine_orders=getattr(args, "combine_orders", True), roi_min_support=args.roi_min_support,
                            verification=args.verification, tolerance_m=args.tolerance,
-                           contrast_min=args.contrast_min)
+                           contrast_min=args.contrast_min, refine_whole=args.refine_whole)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
 
@@ -294,6 +298,9 @@ def cmd_align(args) -> int:
            "reason": res.reason,
            "verification": {**v.to_dict(), "nu_min": params.nu_min, "min_support": params.min_support,
                             "accepted": v.passed}}
+    if res.chosen is not None and res.chosen.search_theta_deg:  # accepted by the contrast rule: refined
+        out["refined_placement"] = {"theta_deg": res.chosen.theta_deg[names[1]],
+                                    "translation_m": list(res.chosen.translation(names[1]))}
     if args.json:
         print(json.dumps(out))
         return 0 if res.accepted else 1
@@ -322,6 +329,10 @@ def cmd_align(args) -> int:
     print(f"verify       {rule_of([v])}: {evidence_text(v)}: {'passed' if v.passed else 'failed'}")
     print("verdict      " + ("ACCEPTED" if res.accepted else f"REJECTED by {refusal(res)}")
           + "   (every check of `merger merge`)")
+    if "refined_placement" in out:
+        r = out["refined_placement"]
+        print(f"refined      {r['theta_deg']:9.2f} deg, t {_xy(r['translation_m'])} m   (the placement refined on the "
+              f"whole maps, where `merger merge` draws the merged map)")
     return 0 if res.accepted else 1
 
 

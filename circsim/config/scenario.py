@@ -131,8 +131,8 @@ class MergerSettings:
     verification : "auto" (default: a pair passes when "whole_map" or "contrast" passes it), "whole_map"
         (the thesis: ω̃ ≥ ``nu_min`` on ``min_support`` cells; the thesis scenes pin it), "contrast" or
         "roi_score" (``merger.MergeParams.verification``; docs/merging-real-maps.md).
-    refine_whole : the accepted placements refined on the whole maps and the merged map drawn there
-        (``merger.MergeParams.refine_whole``; the thesis scenes pin it off).
+    refine_whole : placements the contrast rule accepted are refined on the whole maps and the merged map
+        drawn there (``merger.MergeParams.refine_whole``; the thesis scenes pin it off).
     tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
         agree, and the placement's whole-map fit must stand this many times above its best rival
         (``merger.MergeParams``; :mod:`merger.team.evidence`).

@@ -162,18 +162,18 @@ def climb(f: Fit, start: tuple[float, float, float], lim_deg: float, lim_cells: 
     return best, at
 
 
-def refine(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M):
+def refine(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M, lim_m: float = REFINE_M):
     """The best fit of b placed onto a near its placement: (fit, (θ°, dx, dy cells)), the offset relative
-    to the placement, θ about ``pivot``, within ±``REFINE_DEG`` and ±``REFINE_M`` on each axis. Two climbs
+    to the placement, θ about ``pivot``, within ±``REFINE_DEG`` and ±``lim_m`` on each axis. Two climbs
     (:func:`climb`): from the placement, and from the best of a coarse scan of that box (``SCAN_DEG`` ×
     ``SCAN_STEP_M`` steps, on ~``SCAN_POINTS`` of b's occupied cells); the higher fit wins. The scan finds
     the whole maps' peak when the search's answer sits on a lesser one nearby (a corridor's: Halmstad F5,
     0.6 m along it, docs/merging-real-maps.md)."""
     res = a.resolution
     f = Fit(a, b, pivot, max(tolerance_m / res, 1.0))
-    lim = REFINE_M / res
+    lim = lim_m / res
     here = climb(f, (0.0, 0.0, 0.0), REFINE_DEG, lim)
-    n = int(round(REFINE_M / SCAN_STEP_M))
+    n = int(round(lim_m / SCAN_STEP_M))
     offs = [k * SCAN_STEP_M / res for k in range(-n, n + 1)]
     scan = max(((f.sampled(th, dx, dy), (th, dx, dy)) for th in SCAN_DEG for dx in offs for dy in offs),
                key=lambda v: v[0])

@@ -45,7 +45,7 @@ from .memo import Memo, map_key
 from .pool import parallel_map
 from .superpose import fuse, superpose
 from .track import RESEARCH_CHANGE, RESEARCH_DEFAULT, RESEARCH_DROP, RESEARCH_MODES, RESEARCH_PERIOD_S
-from .verify import Verification, check_pair, no_evidence, pairwise, refined_placement, verify
+from .verify import Verification, check_pair, no_evidence, pairwise, refine_limit_m, refined_placement, verify
 
 VERIFICATIONS = ("auto", "whole_map", "roi_score", "contrast")
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
@@ -70,9 +70,10 @@ class MergeParams:
         either "whole_map" or "contrast" passes it: the thesis's rule on maps that agree cell by cell (the
         simulator's), the contrast rule on maps from independent runs (:func:`merger.team.verify.check_pair`;
         derived in docs/merging-real-maps.md).
-    refine_whole : the accepted placement of every placed map is refined on the whole maps (the contrast
-        rule's local fit, :func:`refine_chosen`) and the merged map drawn there; the search's placement is
-        kept beside it (``OrderResult.search_theta_deg``, ``search_translation_m``). Off: the merged map at
+    refine_whole : the placement of a map the contrast rule accepted is refined on the whole maps (the
+        contrast rule's fit, :func:`refine_chosen`; translations only with a window) and the merged map
+        drawn there; the search's placement is kept beside it (``OrderResult.search_theta_deg``,
+        ``search_translation_m``). A pair ν accepted keeps the search's placement. Off: the merged map at
         the search's placement (the thesis).
     research : "on_change" (default) — a pair (tree) or the team's hypothesis (orders) that holds an accepted
         answer is re-verified at each new map version by an exact local search about it and searched
@@ -585,7 +586,8 @@ def whole_map_guard(maps: list[MapInput], order: tuple[int, ...], params: MergeP
 
     def fit(al_theta: float, t) -> float:
         t = (float(t[0]), float(t[1]))
-        return refine(maps[i].grid, warps.get(i, j, al_theta, t), shifted(maps[i].center, t), params.tolerance_m)[0]
+        return refine(maps[i].grid, warps.get(i, j, al_theta, t), shifted(maps[i].center, t), params.tolerance_m,
+                      refine_limit_m(params))[0]
 
     def settled(name: str, al: Alignment) -> bool:
         if name != maps[j].name or al.beyond is None:  # a later step: onto a superposition
@@ -599,22 +601,27 @@ def refine_chosen(maps: list[MapInput], place: dict[int, Placement], warps: Warp
                   chosen: OrderResult) -> tuple[OrderResult, dict[int, Placement]]:
     """The accepted placements refined on the whole maps (``params.refine_whole``; otherwise unchanged).
 
-    ``place``: (θ, t) onto map 0 per index of ``maps``. Every placed map k ≥ 1 is fitted onto the fusion of
-    the other maps at their accepted placements (one pass, each against the same unrefined others:
-    :func:`merger.team.verify.refined_placement`, the contrast rule's local fit within ±5°, ±0.5 m). The
-    result carries the refined placement and the search's beside it (``search_theta_deg``,
-    ``search_translation_m``); its checks stay those of the search's placement (the verdict)."""
+    ``place``: (θ, t) onto map 0 per index of ``maps``. A placed map k ≥ 1 that some check of ``chosen``
+    passed by the contrast rule (maps that agree only within a few cells) is fitted onto the fusion of the
+    other maps at their accepted placements (one pass, each against the same unrefined others:
+    :func:`merger.team.verify.refined_placement`, the contrast rule's fit within ±5°, ±1 m). A map whose
+    checks the thesis's ν passed keeps the search's placement: its maps agree cell by cell, and the search's
+    cell-exact optimum is finer than the tolerant fit (on the simulator's maps the fit moved a placement
+    14 cm, beyond the bench's 10 cm). The result carries the refined placement and the search's beside it
+    (``search_theta_deg``, ``search_translation_m``); its checks stay those of the search's placement."""
     if not params.refine_whole or params.verification == "roi_score" or len(place) < 2:
+        return chosen, place
+    names = {k: maps[k].name for k in place}
+    todo = [k for k in place if k != 0 and any(v.contrast is not None and v.passed for pair, v in chosen.checks.items()
+                                               if names[k] in pair.split("|"))]
+    if not todo:
         return chosen, place
     lay = place_on_frame0(maps, place, warps)
     out = dict(place)
-    for k in place:
-        if k == 0:
-            continue
+    for k in todo:
         others = OccupancyGrid(fuse([g.states for j, g in enumerate(lay) if j != k]), lay[0].resolution, lay[0].origin)
         th, t = refined_placement(others, lay[k], shifted(maps[0].center, place[k][1]), *place[k], params)
         out[k] = (wrap_deg(th), t)
-    names = {k: maps[k].name for k in place}
     return replace(chosen, theta_deg={names[k]: out[k][0] for k in place},
                    translation_m={names[k]: out[k][1] for k in place},
                    search_theta_deg={names[k]: place[k][0] for k in place},

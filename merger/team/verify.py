@@ -19,7 +19,7 @@ import numpy as np
 from ..grid import OccupancyGrid
 from ..measures import Counts, similarity_index
 from ..transform import overlap
-from .evidence import AGREE_DEG, Contrast, contrast, refine
+from .evidence import AGREE_DEG, REFINE_M, Contrast, contrast, refine
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,9 @@ def check_pair(a: OccupancyGrid, b: OccupancyGrid, pivot, params, label: str = "
         raise ValueError(f"check_pair: verification {rule!r} is not a whole-map rule")
     if rule != "contrast":
         v = verify(*overlap(a, b), nu_min=params.nu_min, min_support=params.min_support, label=label)
-        if rule == "whole_map" or v.passed:
+        # the contrast's support (b's occupied cells on a's known cells) is at most agr̃ + dis: below
+        # min_support here, the contrast rule refuses too, and is not computed
+        if rule == "whole_map" or v.passed or v.counts.support < params.min_support:
             return v
     k = verify_contrast(a, b, pivot, tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
                         min_support=params.min_support, label=label)
@@ -101,12 +103,19 @@ def check_pair(a: OccupancyGrid, b: OccupancyGrid, pivot, params, label: str = "
     return Verification(v.nu, v.counts, False, f"{v.reason}; {k.reason}", k.contrast)
 
 
+def refine_limit_m(params) -> float:
+    """How far the whole-map refinement may move a placement on each axis: ``REFINE_M`` (1 m), at most twice
+    the search's window (the center error it assumes is up to half the window: ±2W covers the search's
+    answer off by as much again); 0 for a rotation-only search, whose centers are exact by assumption."""
+    return min(REFINE_M, 2.0 * float(params.window_m))
+
+
 def refined_placement(a: OccupancyGrid, b: OccupancyGrid, pivot, theta: float, t, params):
     """Whole-map refinement of a placement (θ, t) of b onto a (b already placed by it, about ``pivot`` =
     where b's center lands): the best fit near it (:func:`merger.team.evidence.refine`, tolerance
-    ``params.tolerance_m``) as a placement of the same form, (θ + δθ, t + δ); rotating the placed map by δθ
-    about the pivot and shifting it by δ is that placement."""
-    _, (dth, dx, dy) = refine(a, b, pivot, params.tolerance_m)
+    ``params.tolerance_m``, translations within :func:`refine_limit_m`) as a placement of the same form,
+    (θ + δθ, t + δ); rotating the placed map by δθ about the pivot and shifting it by δ is that placement."""
+    _, (dth, dx, dy) = refine(a, b, pivot, params.tolerance_m, refine_limit_m(params))
     return theta + dth, (float(t[0]) + dx * a.resolution, float(t[1]) + dy * a.resolution)
 
 

@@ -140,7 +140,7 @@ def test_merge_force_places_the_maps_with_their_translations(off_center, tmp_pat
     y1, y2, c1, c2 = args[1], args[2], args[4], args[6]
     out = tmp_path / "forced"
     rc = main(["merge", y1, y2, "--center", c1, "--center", c2, "-o", str(out), "--roi", "4", "--window", "0.3",
-               "--nu-min", "1", "--force", "--json"])  # ν = 1 is never reached: rejected
+               "--nu-min", "1", "--verification", "whole_map", "--force", "--json"])  # ν = 1 is never reached: rejected
     res = json.loads(capsys.readouterr().out)
     assert rc == 1 and not res["accepted"]
     top = max(res["orders"], key=lambda o: o["nu_sum"])

@@ -113,3 +113,31 @@ def test_a_long_corridor_that_looks_alike_both_ways_is_refused_not_merged_wrong(
     for verification in ("whole_map", "contrast", "auto"):
         res, th, t = merged(case, verification=verification)
         assert not correct(case, th, t) and not res.accepted, (verification, th, th_fit, res.reason)
+
+
+def test_merger_merge_with_its_defaults_merges_real_maps_at_the_refined_placement(tmp_path, capsys):
+    """`merger merge A B --center … --center … --roi 16 -o OUT --json` (nothing else): accepted, the JSON's
+    placement is the refined one, correct against the refined truth, with the search's beside it; the files
+    are written."""
+    import json
+
+    from merger.cli import main
+
+    case = next(c for c in halmstad_cases(DATA, [16.0], [0.25]) if c.name == "halmstad HIH_02->HIH_01")
+    judge, _, _ = refined_truth(case)
+    out = tmp_path / "m"
+    code = main(["merge", case.ref, case.mov, "--center", f"{case.c_ref[0]},{case.c_ref[1]}", "--center",
+                 f"{case.c_mov[0]},{case.c_mov[1]}", "--roi", "16", "-o", str(out), "--json"])
+    res = json.loads(capsys.readouterr().out)
+    assert code == 0 and res["accepted"], res["reason"]
+    name = [k for k in res["chosen"]["theta_deg"] if k != res["frame"]][0]
+    th, t = res["chosen"]["theta_deg"][name], res["chosen"]["translation_m"][name]
+    sth, st = res["chosen"]["search_theta_deg"][name], res["chosen"]["search_translation_m"][name]
+    assert correct(judge, th, t) and (th, t) != (sth, st)
+    assert out.with_suffix(".yaml").exists() and (tmp_path / "m_overlay.png").exists()
+    # align judges the same search by the same checks and reports the same refined placement
+    code = main(["align", case.ref, case.mov, "--center", f"{case.c_ref[0]},{case.c_ref[1]}", "--center-moving",
+                 f"{case.c_mov[0]},{case.c_mov[1]}", "--roi", "16", "--json"])
+    al = json.loads(capsys.readouterr().out)
+    assert code == 0 and al["verdict"] == "accepted"
+    assert al["refined_placement"] == {"theta_deg": th, "translation_m": t} and al["theta_deg"] == sth

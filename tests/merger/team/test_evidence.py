@@ -122,10 +122,12 @@ def test_the_default_rule_on_maps_that_agree_cell_by_cell_is_the_thesis_rule():
 
 
 def test_the_accepted_placement_is_refined_on_the_whole_maps_and_the_search_placement_kept(noisy):
-    """refine_chosen: a placement 1.5° and 0.15 m off the truth of the noisy maps is refined back to within
-    0.5° and 5 cm of it; the result keeps the given placement as the search's; refine_whole off leaves it."""
+    """refine_chosen: a placement of the noisy maps (accepted by the contrast rule) 1.5° and 0.15 m off the
+    truth is refined back to within 0.5° and 5 cm of it; the result keeps the given placement as the
+    search's; refine_whole off leaves it, and a rotation-only search (window 0) is refined in angle only."""
     maps, truth = noisy
     res = merge_team(maps, MergeParams(window_m=0.0))
+    assert all(v.contrast is not None and v.passed for v in res.chosen.checks.values())
     place = {0: (0.0, (0.0, 0.0)), 1: ((truth + 1.5) % 360.0, (0.15, 0.0))}
     chosen, out = refine_chosen(maps, place, Warps(maps), MergeParams(), res.chosen)
     name = maps[1].name
@@ -134,8 +136,34 @@ def test_the_accepted_placement_is_refined_on_the_whole_maps_and_the_search_plac
     assert chosen.search_theta_deg[name] == place[1][0] and chosen.search_translation_m[name] == (0.15, 0.0)
     same, kept = refine_chosen(maps, place, Warps(maps), MergeParams(refine_whole=False), res.chosen)
     assert same is res.chosen and kept == place
+    _, turned = refine_chosen(maps, place, Warps(maps), MergeParams(window_m=0.0), res.chosen)
+    assert math.dist(turned[1][1], (0.15, 0.0)) < 1e-12  # the translation kept; the angle refined alone
+
+
+def test_a_pair_the_thesis_rule_accepts_keeps_the_search_placement():
+    """Maps that agree cell by cell (clean views): ν accepts, and the merge stays at the search's
+    placement (the tolerant fit is coarser than the search's cell-exact optimum)."""
+    _, names, views, _ = three_views(4)
+    maps = [MapInput(n, g, c) for n, (g, c) in zip(names[:2], views[:2], strict=True)]
+    res = merge_team(maps, MergeParams(window_m=0.5))
+    assert res.accepted and all(v.contrast is None for v in res.chosen.checks.values())
+    assert res.chosen.search_theta_deg == {}
 
 
 def test_verification_auto_and_the_refinement_are_the_defaults():
     d = MergeParams()
     assert d.verification == "auto" and d.refine_whole
+
+
+def test_auto_skips_the_contrast_only_where_it_must_refuse(noisy):
+    """Below min_support cells of agr̃ + dis the contrast's own support (b's occupied cells on a's known
+    cells, never more) is below it too: auto refuses without computing it, the same verdict as the
+    contrast rule's."""
+    maps, truth = noisy
+    placed = Warps(maps).get(0, 1, truth)
+    nu = check_pair(maps[0].grid, placed, maps[0].center, MergeParams(verification="whole_map"))
+    floor = nu.counts.support + 1
+    k = check_pair(maps[0].grid, placed, maps[0].center, MergeParams(verification="contrast", min_support=floor))
+    auto = check_pair(maps[0].grid, placed, maps[0].center, MergeParams(min_support=floor))
+    assert k.contrast.support <= nu.counts.support and not k.passed and "support" in k.reason
+    assert not auto.passed and auto.contrast is None and "support" in auto.reason

@@ -116,6 +116,14 @@ def run(name: str, duration: float, model: str | None, seed: int | None, extra=(
           f"refused correct after the first merge {tot['refused_correct']:.0f} "
           f"({100 * tot['refused_correct'] / max(tot['cycles'], 1):.1f}% of {tot['cycles']:.0f} cycles); "
           f"worst SLAM pose error {tot['pose_cm']:.2f} cm / {tot['pose_deg']:.2f}°; first merges {firsts}")
+    d = res.to_dict()
+    j, lat, tr = d["placement_jump"], d["latency_s"], d["tracking"]
+    if j["count"]:
+        print(f"placement jumps between held alignments: p95 {j['deg_p95']:.3f}° / {100 * j['m_p95']:.2f} cm, largest "
+              f"{j['deg_max']:.2f}° / {100 * j['m_max']:.1f} cm ({j['count']}); map version to verified merge: median "
+              f"{lat['median']:.1f} s, p95 {lat['p95']:.1f} s; merger.research {sc.merger.research}: "
+              f"{tr['global_searches']} global searches, {tr['local_checks']} local re-verifications, "
+              f"{tr['switches']} switches")
 
 
 class SlamErrors(Observer):

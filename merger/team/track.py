@@ -189,11 +189,23 @@ class Tracker:
 
 
 def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, glob_ok: bool, now: float,
-           placement_of, nu_of):
+           placement_of, nu_of, suspect: bool = False):
     """The answer of a cycle that ran a global search (``glob``, verified: ``glob_ok``) beside the local
     re-verification (``local``, None when no answer was tracked; ``local_ok``): see the module notes.
     Updates ``tr`` and returns the result to use. A tracked answer stays tracked (it is re-verified
-    locally at the next map version) when neither verifies now."""
+    locally at the next map version) when neither verifies now. An answer the team's assembly implicated
+    (``tr.recheck``: an inconsistent loop, a tree edge failing on map 0's frame) has evidence against it:
+    the global search's verdict then stands, as with ``every_version`` (no hysteresis; a failed global
+    search drops it)."""
+    if suspect:
+        if glob_ok:
+            g_place = placement_of(glob)
+            if tr.placement is not None and not agree(g_place, tr.placement):
+                tracker.switched(key, tr, now, tr.placement, g_place)
+            tr.tracked, tr.placement, tr.nu_ref, tr.candidate = glob, g_place, nu_of(glob), None
+        else:
+            tr.tracked, tr.placement, tr.candidate = None, None, None
+        return glob
     if not glob_ok:
         if local is not None and local_ok:  # never drop a verified answer because one search failed
             tr.tracked, tr.placement, tr.candidate = local, placement_of(local), None

@@ -437,9 +437,10 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             out = None
         if out is None:
             glob = compute(task)
+            suspect = bool(tr.recheck)
             tracker.searched(tr, sub, params.roi_m, now)
             out = decide(tracker, key, tr, local, local_ok, glob, glob.verification.passed, now, _placement,
-                         lambda p: p.verification.nu)
+                         lambda p: p.verification.nu, suspect)
         if out.verification.passed:
             tracker.accepted(tr, _placement(out))
         tr.last = out

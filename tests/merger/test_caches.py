@@ -61,7 +61,8 @@ def test_caches_stay_within_their_bounds_over_many_cycles(window_m):
     """Every cycle brings a new map; the searcher cache never holds more than its bound, the pair reuse
     holds only the current pairs, and a cycle equals one computed with an empty cache."""
     _, names, maps, _ = three_views(3)
-    params = MergeParams(roi_m=6.0, window_m=window_m)
+    # every version searched globally: the cycle is then comparable with merge_team from scratch
+    params = MergeParams(roi_m=6.0, window_m=window_m, research="every_version")
     rng = np.random.default_rng(0)
     tm = TeamMerger("Lyon", tuple(names), params)
     for n, (g, c) in zip(names, maps, strict=True):

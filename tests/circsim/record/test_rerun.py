@@ -153,7 +153,7 @@ def fabricated(tmp_path_factory):
                     if m != n:
                         rec.on_map_received(t, n, m, 0.5)
         if k == 7:
-            merge(t, "Lyon", MergeParams(nu_min=0.99, window_m=0.5))  # rejected: ν_min impossible
+            merge(t, "Lyon", MergeParams(nu_min=0.99, window_m=0.5, verification="whole_map"))  # rejected: ν_min impossible
             for n in NAMES:
                 merge(t, n)  # accepted, first correct: logged at once
         if k in (8, 10):

@@ -45,35 +45,39 @@ def full_size(seed: int, measure: str) -> RotationProblem:
     return RotationProblem(g, c.moving, tuple(cr), c.center_moving, c.roi_m, measure, 0.5)
 
 
-def local_main(args) -> int:
-    """The local search (merger.search.local) against the exhaustive search restricted to its region, on
-    ``--n`` adversarial problems per measure, each about a region centred at a random angle and cell of
-    the window (seeded: the same problems every run)."""
+def compare(cases: dict, names: tuple[str, str], what: str = "problems") -> int:
+    """Per measure, every case (name, exhaustive thunk, fast thunk): time both, count the differences in
+    (θ, t, score, counts) and print them; returns 1 when any differs."""
     total = diff = 0
     t_ref = t_fast = 0.0
-    for measure in args.measures.split(","):
+    for measure, items in cases.items():
         d = 0
-        for s in range(args.start, args.start + args.n):
-            p = adversarial_problem(s, measure, s % 2 == 1)
-            rng = np.random.default_rng(s)
-            k = p.window_cells
-            theta = float(rng.choice([rng.uniform(0, 360), round(rng.uniform(0, 360)), 0.0, 359.6]))
-            cells = (int(rng.integers(-k, k + 1)), int(rng.integers(-k, k + 1)))
+        for name, ref_fn, fast_fn in items:
             t0 = time.perf_counter()
-            r = reference_local(p, theta, cells)
+            r = ref_fn()
             t1 = time.perf_counter()
-            f = local_search(p, theta, cells)
+            f = fast_fn()
             t2 = time.perf_counter()
             t_ref += t1 - t0
             t_fast += t2 - t1
             if key(r) != key(f):
                 d += 1
-                print(f"  DIFFERENCE {measure} small {s}: reference_local {key(r)} local {key(f)}", flush=True)
-        total += args.n
+                print(f"  DIFFERENCE {measure} {name}: {names[0]} {key(r)} {names[1]} {key(f)}", flush=True)
+        total += len(items)
         diff += d
-        print(f"{measure}: {d} differences in {args.n} local problems", flush=True)
-    print(f"all: {diff} differences in {total} local problems; exhaustive {t_ref:.1f} s, local search {t_fast:.1f} s")
+        print(f"{measure}: {d} differences in {len(items)} {what}", flush=True)
+    print(f"all: {diff} differences in {total} {what}; {names[0]} {t_ref:.1f} s, {names[1]} {t_fast:.1f} s")
     return 1 if diff else 0
+
+
+def local_case(s: int, measure: str):
+    """A small adversarial problem and a region about a random angle and cell of its window (seeded)."""
+    p = adversarial_problem(s, measure, s % 2 == 1)
+    rng = np.random.default_rng(s)
+    k = p.window_cells
+    theta = float(rng.choice([rng.uniform(0, 360), round(rng.uniform(0, 360)), 0.0, 359.6]))
+    cells = (int(rng.integers(-k, k + 1)), int(rng.integers(-k, k + 1)))
+    return (f"small {s}", lambda: reference_local(p, theta, cells), lambda: local_search(p, theta, cells))
 
 
 def main(argv=None) -> int:
@@ -84,30 +88,17 @@ def main(argv=None) -> int:
     ap.add_argument("--start", type=int, default=0, help="first seed of the small problems")
     ap.add_argument("--measures", default=",".join(MEASURES), help="comma-separated (default: all three)")
     args = ap.parse_args(argv)
-    if args.local:
-        return local_main(args)
-    total = diff = 0
-    t_ref = t_fast = 0.0
-    for measure in args.measures.split(","):
-        problems = [(f"small {s}", lambda s=s, m=measure: adversarial_problem(s, m, s % 2 == 1)) for s in range(args.start, args.start + args.n)]
-        problems += [(f"full {s}", lambda s=s, m=measure: full_size(s, m)) for s in range(args.full)]
-        d = 0
-        for name, make in problems:
-            t0 = time.perf_counter()
-            r = reference_search(make())
-            t1 = time.perf_counter()
-            f = fast_search(make())
-            t2 = time.perf_counter()
-            t_ref += t1 - t0
-            t_fast += t2 - t1
-            if key(r) != key(f):
-                d += 1
-                print(f"  DIFFERENCE {measure} {name}: reference {key(r)} fast {key(f)}", flush=True)
-        total += len(problems)
-        diff += d
-        print(f"{measure}: {d} differences in {len(problems)} problems", flush=True)
-    print(f"all: {diff} differences in {total} problems; reference {t_ref:.1f} s, fast {t_fast:.1f} s")
-    return 1 if diff else 0
+    seeds = range(args.start, args.start + args.n)
+    measures = args.measures.split(",")
+    if args.local:  # the local search (merger.search.local) against the exhaustive search on its region
+        return compare({m: [local_case(s, m) for s in seeds] for m in measures}, ("exhaustive", "local"),
+                       "local problems")
+    cases = {}
+    for m in measures:
+        makes = [(f"small {s}", lambda s=s, m=m: adversarial_problem(s, m, s % 2 == 1)) for s in seeds]
+        makes += [(f"full {s}", lambda s=s, m=m: full_size(s, m)) for s in range(args.full)]
+        cases[m] = [(name, lambda mk=mk: reference_search(mk()), lambda mk=mk: fast_search(mk())) for name, mk in makes]
+    return compare(cases, ("reference", "fast"))
 
 
 if __name__ == "__main__":

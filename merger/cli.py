@@ -426,10 +426,13 @@ def evidence_text(v, label: str = "") -> str:
     else ν and its support."""
     name = f"{label} " if label else ""
     k = v.contrast
+    if k is not None and math.isnan(k.best):  # refused on its support before any fit (evidence.contrast)
+        return f"{name}{k.support} cells under the contrast rule; ν {v.nu:.2f}"
     if k is not None:
         rival = (f"rival {k.rival:.3f} at {k.rival_at[0]:+.0f}°" if k.rival > 0 and math.isfinite(k.rival_at[0])
-                 else "no rival")
-        return f"{name}contrast {k.contrast:.2f} (fit {k.best:.3f} vs {rival}, {k.support} cells; ν {v.nu:.2f})"
+                 else "rival not computed (the fit's angle already refuses)" if math.isnan(k.rival) else "no rival")
+        contrast = "–" if math.isnan(k.contrast) else f"{k.contrast:.2f}"
+        return f"{name}contrast {contrast} (fit {k.best:.3f} vs {rival}, {k.support} cells; ν {v.nu:.2f})"
     return f"{name}ν {v.nu:.3f} ({v.support} cells)"
 
 

@@ -181,13 +181,23 @@ def refine(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLER
     return there if there[0] > here[0] else here
 
 
-def contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M) -> Contrast:
+def contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOLERANCE_M, *,
+             min_support: int = 0, agree_deg: float | None = None) -> Contrast:
     """The contrast evidence of b placed onto a (two grids on one cell lattice), rotations about ``pivot``
-    (world x, y: where the maps' common center lies)."""
+    (world x, y: where the maps' common center lies). ``min_support`` and ``agree_deg`` (the rule's own
+    tests, :func:`merger.team.verify.verify_contrast`): when the support is below the first, or the best
+    fit lies farther than the second from the placement, the rule refuses whatever the rivals, and they are
+    not computed (``rival`` NaN; below the support neither is the best fit)."""
     res = a.resolution
     f = Fit(a, b, pivot, max(tolerance_m / res, 1.0))
+    support = f.support()
+    nan = float("nan")
+    if support < min_support:
+        return Contrast(nan, (nan, 0.0, 0.0), nan, (nan, 0.0, 0.0), support)
     lim = LOCAL_M / res
     best, best_at = climb(f, (0.0, 0.0, 0.0), LOCAL_DEG, lim)
+    if agree_deg is not None and abs(best_at[0]) > agree_deg:
+        return Contrast(best, best_at, nan, (nan, 0.0, 0.0), support)
     far = np.arange(RIVAL_SEP_DEG, 360.0 - RIVAL_SEP_DEG + 1e-9, RIVAL_STEP_DEG)
     vals = np.array([f(float(th), 0.0, 0.0) for th in far])
     # the rivals: the scan's local maxima (a slope towards the placement is its peak's shoulder, not a rival)
@@ -200,4 +210,4 @@ def contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, tolerance_m: float = TOL
             continue  # climbed to its limit towards the placement: the placement's shoulder
         if v > rival:
             rival, rival_at = v, at
-    return Contrast(best, best_at, rival, rival_at, f.support())
+    return Contrast(best, best_at, rival, rival_at, support)

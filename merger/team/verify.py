@@ -41,10 +41,16 @@ class Verification:
                "support": self.support, "passed": self.passed, "reason": self.reason}
         k = self.contrast
         if k is not None:
-            out.update(contrast=k.contrast, fit=k.best, rival_fit=k.rival, rival_offset_deg=k.rival_at[0],
+            out.update(contrast=_finite(k.contrast), fit=_finite(k.best), rival_fit=_finite(k.rival),
+                       rival_offset_deg=_finite(k.rival_at[0]),
                        contrast_support=k.support,
-                       refined_offset={"theta_deg": k.best_at[0], "cells": [k.best_at[1], k.best_at[2]]})
+                       refined_offset={"theta_deg": _finite(k.best_at[0]), "cells": [k.best_at[1], k.best_at[2]]})
         return out
+
+
+def _finite(v):
+    """A figure for JSON: None when it was not computed (NaN)."""
+    return None if v is None or np.isnan(v) else float(v)
 
 
 def verify(a: np.ndarray, b: np.ndarray, *, nu_min: float, min_support: int,
@@ -65,7 +71,7 @@ def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: f
     """The contrast rule (:mod:`merger.team.evidence`) for b placed onto a (grids on one lattice, rotations about
     ``pivot``); ``nu`` and ``counts`` are ω̃ on the overlap, as in :func:`verify`, for the record."""
     s = similarity_index(*overlap(a, b))
-    k = contrast(a, b, pivot, tolerance_m)
+    k = contrast(a, b, pivot, tolerance_m, min_support=min_support, agree_deg=AGREE_DEG)
     name = f" of {label}" if label else ""
     if k.support < min_support:
         return Verification(s.value, s.counts, False, f"support{name} = {k.support} occupied cells on known "

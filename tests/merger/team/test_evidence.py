@@ -62,8 +62,10 @@ def test_a_placement_a_few_degrees_off_stands_above_its_rivals_but_is_refused_by
     placed = Warps(maps).get(0, 1, (truth + 6.0) % 360.0)
     v = verify_contrast(maps[0].grid, placed, maps[0].center, tolerance_m=0.2, contrast_min=CONTRAST_MIN,
                         min_support=200)
-    assert v.contrast.contrast >= CONTRAST_MIN and v.contrast.best_at[0] <= -AGREE_DEG - 0.5
+    full = contrast(maps[0].grid, placed, maps[0].center, 0.2)  # every rival computed
+    assert full.contrast >= CONTRAST_MIN and v.contrast.best_at[0] <= -AGREE_DEG - 0.5
     assert not v.passed and "fit best" in v.reason
+    assert math.isnan(v.contrast.rival)  # the rule refused on the angle: its rivals were not computed
     right = verify_contrast(maps[0].grid, Warps(maps).get(0, 1, truth), maps[0].center, tolerance_m=0.2,
                             contrast_min=CONTRAST_MIN, min_support=200)
     assert right.passed, right.reason
@@ -167,3 +169,27 @@ def test_auto_skips_the_contrast_only_where_it_must_refuse(noisy):
     auto = check_pair(maps[0].grid, placed, maps[0].center, MergeParams(min_support=floor))
     assert k.contrast.support <= nu.counts.support and not k.passed and "support" in k.reason
     assert not auto.passed and auto.contrast is None and "support" in auto.reason
+
+
+def _rule_on_full_contrast(k, min_support=200):
+    """The contrast rule's verdict from the complete evidence (every rival computed): the reference for the
+    rule that stops early."""
+    if k.support < min_support:
+        return False, "support"
+    if abs(k.best_at[0]) > AGREE_DEG:
+        return False, "fit best"
+    return k.contrast >= CONTRAST_MIN, "contrast"
+
+
+@pytest.mark.parametrize("off", [0.0, 1.5, 3.0, 6.0, 10.0, 25.0, 90.0, 180.0])
+def test_the_rule_that_stops_early_gives_the_verdicts_of_the_complete_evidence(noisy, off):
+    maps, truth = noisy
+    for g1 in (maps[1].grid, OccupancyGrid(np.where(maps[1].grid.states == OCCUPIED_S, FREE_S, maps[1].grid.states)
+                                           .astype(np.uint8), maps[1].grid.resolution, maps[1].grid.origin)):
+        m = [maps[0], MapInput(maps[1].name, g1, maps[1].center)]
+        placed = Warps(m).get(0, 1, (truth + off) % 360.0)
+        want_pass, why = _rule_on_full_contrast(contrast(m[0].grid, placed, m[0].center, 0.2))
+        v = verify_contrast(m[0].grid, placed, m[0].center, tolerance_m=0.2, contrast_min=CONTRAST_MIN,
+                            min_support=200)
+        assert v.passed == want_pass, (off, v.reason)
+        assert v.passed or why in v.reason, (off, why, v.reason)  # refused by the same test

@@ -68,11 +68,9 @@ def check_bag_files(path: Path) -> None:
                                f"{'a FIFO' if stat.S_ISFIFO(mode) else 'a device or special file'}")
 
 
-def read_bag_maps(path, topics: list[str]) -> dict[str, OccupancyGrid]:
-    """The last ``nav_msgs/msg/OccupancyGrid`` of each of ``topics`` in the bag at ``path`` (a ROS 2 bag
-    folder, or a ROS 1 ``.bag``), in the order of ``topics``."""
+def _open(path: Path):
+    """The bag at ``path`` opened with rosbags (MapFileError naming the file when it is not one)."""
     AnyReader, typestore = _rosbags()
-    path = Path(path)
     if not path.exists():
         raise MapFileError(f"{path}: no such bag")
     check_bag_files(path)
@@ -82,15 +80,29 @@ def read_bag_maps(path, topics: list[str]) -> dict[str, OccupancyGrid]:
     except Exception as e:  # rosbags raises its own errors for anything that is not a bag
         raise MapFileError(f"{path}: not a readable ROS bag ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") \
             from None
+    return reader
+
+
+def _map_topics(reader, path: Path, topics: list[str]) -> dict:
+    """The bag's connections by topic, after checking that each of ``topics`` is an OccupancyGrid topic."""
+    by_topic = {c.topic: c for c in reader.connections}
+    maps_here = sorted(t for t, c in by_topic.items() if c.msgtype == MSGTYPE)
+    for t in topics:
+        if t not in by_topic:
+            raise MapFileError(f"{path}: topic {t}: not in the bag (its {MSGTYPE} topics: "
+                               f"{', '.join(maps_here) or 'none'})")
+        if by_topic[t].msgtype != MSGTYPE:
+            raise MapFileError(f"{path}: topic {t}: expected {MSGTYPE}, got {by_topic[t].msgtype}")
+    return by_topic
+
+
+def read_bag_maps(path, topics: list[str]) -> dict[str, OccupancyGrid]:
+    """The last ``nav_msgs/msg/OccupancyGrid`` of each of ``topics`` in the bag at ``path`` (a ROS 2 bag
+    folder, or a ROS 1 ``.bag``), in the order of ``topics``."""
+    path = Path(path)
+    reader = _open(path)
     try:
-        by_topic = {c.topic: c for c in reader.connections}
-        maps_here = sorted(t for t, c in by_topic.items() if c.msgtype == MSGTYPE)
-        for t in topics:
-            if t not in by_topic:
-                raise MapFileError(f"{path}: topic {t}: not in the bag (its {MSGTYPE} topics: "
-                                   f"{', '.join(maps_here) or 'none'})")
-            if by_topic[t].msgtype != MSGTYPE:
-                raise MapFileError(f"{path}: topic {t}: expected {MSGTYPE}, got {by_topic[t].msgtype}")
+        by_topic = _map_topics(reader, path, topics)
         last: dict[str, tuple[int, bytes, object]] = {}
         for conn, stamp, raw in reader.messages(connections=[by_topic[t] for t in topics]):
             if conn.topic not in last or stamp >= last[conn.topic][0]:
@@ -124,24 +136,10 @@ def read_bag_map_series(path, topics: list[str], *, stamp: str = "header") -> di
     """Every ``nav_msgs/msg/OccupancyGrid`` of each of ``topics`` in the bag at ``path``, in time order, as
     ``(seconds, grid)``: the message's header stamp (``stamp="header"``) or the bag's receive time
     (``stamp="bag"``). Errors as :func:`read_bag_maps`."""
-    AnyReader, typestore = _rosbags()
     path = Path(path)
-    if not path.exists():
-        raise MapFileError(f"{path}: no such bag")
-    check_bag_files(path)
+    reader = _open(path)
     try:
-        reader = AnyReader([path], default_typestore=typestore)
-        reader.open()
-    except Exception as e:
-        raise MapFileError(f"{path}: not a readable ROS bag ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})") \
-            from None
-    try:
-        by_topic = {c.topic: c for c in reader.connections}
-        maps_here = sorted(t for t, c in by_topic.items() if c.msgtype == MSGTYPE)
-        for t in topics:
-            if t not in by_topic or by_topic[t].msgtype != MSGTYPE:
-                raise MapFileError(f"{path}: topic {t}: no {MSGTYPE} topic of that name in the bag (its "
-                                   f"{MSGTYPE} topics: {', '.join(maps_here) or 'none'})")
+        by_topic = _map_topics(reader, path, topics)
         out: dict[str, list] = {t: [] for t in topics}
         for conn, ns, raw in reader.messages(connections=[by_topic[t] for t in topics]):
             where = f"{path}: topic {conn.topic}"

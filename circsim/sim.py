@@ -15,7 +15,8 @@ over a second network of the same latency, jitter and loss (its own random strea
 not change the maps' deliveries); after the tick's merge cycles each robot weighs what arrived
 (:meth:`merger.TeamMerger.consider`), and an adopted hypothesis is judged like an accepted cycle.
 
-The tick's merge cycles run on a thread of their own while the next tick's robots move, scan and map
+The tick's merge cycles (the robots' side by side on the merger's pool, :mod:`merger.team.pool`) run on a
+thread of their own while the next tick's robots move, scan and map
 (the world never reads a merge; a cycle reads only maps already published), and are judged and told to
 the observers before that tick's events: the same events in the same order as one thread would give
 (with ``merger.share_hypotheses``, or ``MERGER_THREADS=1``, the cycles run in the tick itself).
@@ -41,6 +42,7 @@ from merger.algorithms.online import make_merger
 from merger.team.memo import Memo
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams
+from merger.team.pool import parallel_map
 from merger.team.pool import threads as merger_threads
 
 from .config.scenario import Scenario, scenario_to_dict
@@ -226,7 +228,10 @@ class Simulation:
                 if r.merger.ready():
                     jobs.append((r, trigger))
         if jobs and self._cycles_thread is not None:
-            self._pending = (t, jobs, self._cycles_thread.submit(lambda: [r.merger.cycle(now=t) for r, _ in jobs]))
+            # the robots' cycles side by side on the merger's pool (each a pure function of what its robot
+            # holds; told in robot order): a tick's cycles no longer run one after the other
+            self._pending = (t, jobs, self._cycles_thread.submit(
+                lambda: parallel_map(lambda job: job[0].merger.cycle(now=t), jobs)))
         else:
             for r, trigger in jobs:
                 self._judge(r, t, trigger, r.merger.cycle(now=t))

@@ -99,7 +99,7 @@ def office_views(seeds=range(1, 6), error=0.3) -> list[dict]:
             maps = [MapInput(n, load_map(str(Path(d) / m["map"])), tuple(m["center"])) for n, m in meta["maps"].items()]
             truth = meta["truth"]
 
-            def judge(top):
+            def judge(top, maps=maps, truth=truth):
                 if len(top.theta_deg) != len(maps):
                     return False
                 for k, tr in truth.items():

@@ -56,6 +56,7 @@ import numpy as np
 
 from merger.search import angle_diff_deg
 from merger.team.orders import Placement, compose
+from merger.team.track import jump_summary, placement_jump
 
 from .events import MergeCycle, Observer
 
@@ -208,12 +209,7 @@ class RunResult:
     def jump_summary(self) -> dict:
         """How far a teammate's placement moved between consecutive alignments a robot held: p95 and
         largest, angle (°) and translation (m), over every robot and teammate."""
-        j = np.asarray(self.placement_jumps, np.float64).reshape(-1, 2)
-        if not len(j):
-            return {"count": 0, "deg_p95": None, "m_p95": None, "deg_max": None, "m_max": None}
-        return {"count": int(len(j)), "deg_p95": float(np.percentile(j[:, 0], 95)),
-                "m_p95": float(np.percentile(j[:, 1], 95)), "deg_max": float(j[:, 0].max()),
-                "m_max": float(j[:, 1].max())}
+        return jump_summary(self.placement_jumps)
 
     def tracking_summary(self) -> dict:
         """The tracker's work (``merger.research: on_change``): per robot and pair the global searches it
@@ -359,9 +355,7 @@ class MetricsObserver(Observer):
         now = {k: (c.theta_deg[k], c.translation(k)) for k in c.theta_deg}
         for k, p in now.items():
             if k != cycle.robot and k in before:
-                q = before[k]
-                self.result.placement_jumps.append([abs(float(angle_diff_deg(p[0], q[0]))),
-                                                    math.hypot(p[1][0] - q[1][0], p[1][1] - q[1][1])])
+                self.result.placement_jumps.append(list(placement_jump(p, before[k])))
             stamp = cycle.map_stamps.get(k)
             if stamp is not None and (cycle.robot, k, stamp) not in self._merged_versions:
                 self._merged_versions.add((cycle.robot, k, stamp))

@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import align
 from .algorithms import ALGORITHMS
 from .io.mapio import (
     CENTERS_FILE,

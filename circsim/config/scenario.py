@@ -29,6 +29,7 @@ from typing import Any
 
 import yaml
 
+from merger.algorithms import ALGORITHMS
 from merger.limits import (
     MAX_ROI_M,
     MAX_YAML_BYTES,
@@ -38,7 +39,6 @@ from merger.limits import (
     one_line,
     read_input,
 )
-from merger.algorithms import ALGORITHMS
 from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
 from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
 from merger.team.track import (

@@ -20,7 +20,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from merger.grid import known_bounds
-from merger.io.overlay import PALETTE, overlay_rgb  # one palette: the overlays' and the recording's
+from merger.io.overlay import overlay_rgb
 
 CROP_MARGIN_CELLS = 20  # logged maps and overlays: known cells plus 1 m at 5 cm
 GREY = (150, 150, 150)

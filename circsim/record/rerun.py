@@ -88,14 +88,13 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from merger.io.overlay import colours_for
+from merger.io.overlay import PALETTE, colours_for
 from merger.limits import one_line
 from merger.team.online import resolve_strategy
 
 from ..events import MergeCycle, Observer, RobotTick
 from .entities import (
     GREY,
-    PALETTE,
     circle_points,
     default_blueprint,
     dim_colour,

@@ -41,12 +41,12 @@ def pair_function(algorithm: str):
     return align
 
 
-def align_pair(algorithm: str, ref: MapInput, mov: MapInput, params: MergeParams = MergeParams()) -> PairAnswer:
+def align_pair(algorithm: str, ref: MapInput, mov: MapInput, params: MergeParams = MergeParams()) -> PairAnswer:  # noqa: B008 (frozen)
     """Map ``mov`` onto map ``ref`` with ``algorithm``."""
     return pair_function(algorithm)(ref, mov, params)
 
 
-def merge(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParams(), *, cache: dict | None = None,
+def merge(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParams(), *, cache: dict | None = None,  # noqa: B008 (frozen)
           **thesis_kwargs) -> TeamMergeResult:
     """Merge a team with ``algorithm`` (``thesis``: :func:`merger.team.orders.merge_team` with
     ``thesis_kwargs``; the others: :func:`merger.algorithms.team.merge_pairwise`)."""
@@ -59,7 +59,7 @@ def merge(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParam
     return merge_pairwise(pair_function(algorithm), maps, params, cache=cache, name=algorithm)
 
 
-def merge_every_map(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:
+def merge_every_map(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:  # noqa: B008 (frozen)
     """:func:`merge` for a merge of files (``merger merge --algorithm``): accepted only when every map is
     placed (a pairwise algorithm may place a part of the team; the online bench keeps that partial merge)."""
     from dataclasses import replace

@@ -86,15 +86,13 @@ def merge_team_tracked(maps: list[MapInput], params: MergeParams, tracker: Track
             tr.tracked, tr.placement = local, team_placement(local)
             tracker.accepted(tr, tr.placement)
             return local
-    elif tr.tracked is not None:
-        local = None  # the held maps changed: the hypothesis does not place them all
     glob = merge_team(maps, params, reuse=reuse, memo=memo)
     tracker.searched(tr, maps, params.roi_m, now)
     if local is None and tr.tracked is not None and glob.accepted:
-        tr.tracked = None  # a new team: the global answer starts the track
+        tr.tracked = None  # the held maps are not the hypothesis's: the global answer starts the track
         tr.placement = None
     out = decide(tracker, TEAM, tr, local, local_ok, glob, glob.accepted, now,
-                 lambda r: team_placement(r), mean_nu)
+                 team_placement, mean_nu)
     if out.accepted:
         tracker.accepted(tr, team_placement(out))
     return out

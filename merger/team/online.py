@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..grid import OccupancyGrid
+from .follow import merge_team_tracked
 from .memo import Memo
 from .orders import MapInput, MergeParams, TeamMergeResult, merge_team
 from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
-from .follow import merge_team_tracked
 from .track import Tracker
 from .tree import merge_tree
 

@@ -73,6 +73,16 @@ def placement_jump(a, b) -> tuple[float, float]:
             math.hypot(float(a[1][0]) - float(b[1][0]), float(a[1][1]) - float(b[1][1])))
 
 
+def jump_summary(jumps) -> dict:
+    """Placement jumps [(Δθ°, Δt m), ...] summarized: their count, p95 and largest of each (None: none)."""
+    j = np.asarray(jumps, np.float64).reshape(-1, 2)
+    if not len(j):
+        return {"count": 0, "deg_p95": None, "m_p95": None, "deg_max": None, "m_max": None}
+    return {"count": int(len(j)), "deg_p95": float(np.percentile(j[:, 0], 95)),
+            "m_p95": float(np.percentile(j[:, 1], 95)), "deg_max": float(j[:, 0].max()),
+            "m_max": float(j[:, 1].max())}
+
+
 def agree(a, b) -> bool:
     """Whether two placements (or team placements) are one hypothesis: within AGREE_DEG and AGREE_M."""
     dth, dt = placement_jump(a, b)
@@ -175,17 +185,9 @@ class Tracker:
         return out
 
     def stats(self) -> dict:
-        """Per track: global searches, local re-verifications, switches and the jumps' largest and p95."""
-        out = {}
-        for k, tr in sorted(self.tracks.items()):
-            j = np.array(tr.jumps, np.float64).reshape(-1, 2)
-            out[k] = {"global_searches": tr.globals, "local_checks": tr.locals, "switches": tr.switches,
-                      "jumps": len(j),
-                      "jump_deg_p95": float(np.percentile(j[:, 0], 95)) if len(j) else None,
-                      "jump_m_p95": float(np.percentile(j[:, 1], 95)) if len(j) else None,
-                      "jump_deg_max": float(j[:, 0].max()) if len(j) else None,
-                      "jump_m_max": float(j[:, 1].max()) if len(j) else None}
-        return out
+        """Per track: global searches, local re-verifications, switches and its answers' jumps (:func:`jump_summary`)."""
+        return {k: {"global_searches": tr.globals, "local_checks": tr.locals, "switches": tr.switches,
+                    "jumps": jump_summary(tr.jumps)} for k, tr in sorted(self.tracks.items())}
 
 
 def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, glob_ok: bool, now: float,

@@ -16,7 +16,7 @@ assembled:
    only with ν ≥ ν_min + ``BRIDGE_MARGIN``, otherwise dropped and the tree spanned again without it (the
    maps beyond are left out until a loop confirms them or the evidence grows). In the 16-robot hall at
    2.6 s a pair of maps 90° off verified with ν 0.500 on 298 cells (the truth: 0.463 on 136) and
-   linked two robots to the team alone: six gross false merges;
+   linked two robots to the team alone: 8 gross false merges in 20 s (``verification: whole_map``);
 2. every verified pair that is *not* a tree edge is a cycle of the graph: its own alignment must agree
    with the composed placements (within 10° and 0.2 m, the ambiguity rule's distances), otherwise the
    cycle is rejected as inconsistent — a false pair closes a loop that the true pairs do not;
@@ -32,7 +32,7 @@ assembled:
    and requiring it of the pairs that verified on their own still rejected 4 of 5 (a marginal pair's
    ν moves across ν_min between its own best alignment and the composed one). Under ``verification:
    auto`` a tree edge is checked by the whole rule and the other pairs by ν alone (their checks are
-   evidence only; the contrast's rival scan for each of them cost most of a 16-robot cycle).
+   evidence only; the contrast's checks in the assembly were 45% of the 16-robot hall's merge thread).
 5. as with the orders (:func:`merger.team.orders._beyond`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
@@ -211,27 +211,33 @@ def disagreement(place: dict[int, Placement], p: PairResult, names, i: int, j: i
     return abs(angle_diff_deg(wrap_deg(th_j - th_i), th_ij)), math.dist((float(d[0]), float(d[1])), t_ij)
 
 
-def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
-                    tree: list[tuple[int, int]], maps: list[MapInput]) -> list[str]:
-    """Verified non-tree pairs between placed maps whose own alignment disagrees with the composed one."""
+def inconsistent_pairs(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
+                       tree: list[tuple[int, int]], names) -> list[tuple[int, int, float, float]]:
+    """Verified non-tree pairs (i, j) between placed maps whose own alignment disagrees with the composed
+    one by more than 10° or 0.2 m, with that disagreement (°, m)."""
     out = []
     in_tree = set(tree)
-    names = [m.name for m in maps]
     for (i, j), p in pairs.items():
         if not p.verification.passed or (i, j) in in_tree or i not in place or j not in place:
             continue
         dth, dt = disagreement(place, p, names, i, j)
         if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
-            out.append(f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
-                       f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement")
+            out.append((i, j, dth, dt))
     return out
+
+
+def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
+                    tree: list[tuple[int, int]], maps: list[MapInput]) -> list[str]:
+    """Why the assembly is inconsistent: one line per pair of :func:`inconsistent_pairs`."""
+    return [f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
+            f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement"
+            for i, j, dth, dt in inconsistent_pairs(place, pairs, tree, [m.name for m in maps])]
 
 
 def loop_pairs(place, pairs, tree, links, names) -> set[tuple[int, int]]:
     """The pairs of the inconsistent loops (:func:`inconsistencies`): each inconsistent verified pair (i, j)
     and the tree edges on the path from i to j."""
     parent = {b: a for a, b in links}
-    in_tree = set(tree)
 
     def up(k):
         path = [k]
@@ -240,16 +246,12 @@ def loop_pairs(place, pairs, tree, links, names) -> set[tuple[int, int]]:
         return path
 
     out = set()
-    for (i, j), p in pairs.items():
-        if not p.verification.passed or (i, j) in in_tree or i not in place or j not in place:
-            continue
-        dth, dt = disagreement(place, p, names, i, j)
-        if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
-            out.add((i, j))
-            pi, pj = up(i), up(j)
-            common = next(k for k in pi if k in set(pj))
-            for path in (pi[:pi.index(common) + 1], pj[:pj.index(common) + 1]):
-                out |= {(min(a, b), max(a, b)) for a, b in zip(path, path[1:])}
+    for i, j, _, _ in inconsistent_pairs(place, pairs, tree, names):
+        out.add((i, j))
+        pi, pj = up(i), up(j)
+        common = next(k for k in pi if k in set(pj))
+        for path in (pi[:pi.index(common) + 1], pj[:pj.index(common) + 1]):
+            out |= {(min(a, b), max(a, b)) for a, b in zip(path, path[1:], strict=False)}
     return out
 
 

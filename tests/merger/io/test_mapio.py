@@ -205,9 +205,9 @@ def test_one_qualitative_palette_in_the_overlay_and_the_recording():
         h_occ, _, _ = colorsys.rgb_to_hls(*(c / 255 for c in occ))
         h_free, l_free, _ = colorsys.rgb_to_hls(*(c / 255 for c in free))
         assert min(abs(h_occ - h_free), 1 - abs(h_occ - h_free)) < 0.02 and l_free > colorsys.rgb_to_hls(*(c / 255 for c in occ))[1]
-    import circsim.record.entities as entities
+    import circsim.record.rerun as recording  # the recorder draws robots with it
 
-    assert entities.PALETTE is PALETTE
+    assert recording.PALETTE is PALETTE
 
 
 def _states_by_the_rule(grey: np.ndarray, meta: dict) -> np.ndarray:

@@ -175,7 +175,10 @@ def test_windows_up_to_a_quarter_of_the_roi_are_allowed():
     for roi, w in ((4.0, 1.0), (8.0, 2.0), (8.0, 0.5), (2.0, 0.5), (3.3, 3.3 / 4), (4.0, 0.0)):
         check_window(w, roi)
         assert MergeParams(roi_m=roi, window_m=w).window_m == w
-    assert MAX_WINDOW_FRACTION == 0.25
+        # the exported bound (the CLI's message reads it) is the one the check applies, and it is sharp
+        check_window(MAX_WINDOW_FRACTION * roi, roi)
+        with pytest.raises(ValueError, match="more than a quarter of the ROI side"):
+            check_window(roi / 4 + 1e-9, roi)
     assert MergeParams().window_m == 0.5 and MergeParams().refine  # the defaults
     with pytest.raises(ValueError, match="window_m"):
         MergeParams(roi_m=1.9)  # the default window 0.5 m is more than 1.9 / 4

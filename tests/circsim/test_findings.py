@@ -13,8 +13,7 @@ from circsim.experiments.offline import OfflineSettings, default_search_method, 
 from circsim.experiments.sweep import HypothesisStats
 from circsim.sim import Simulation
 
-FAST = default_search_method()
-needs_fast = pytest.mark.skipif(FAST != "fast", reason="online runs need the fast rotation search for CI")
+FAST = default_search_method()  # "fast": the exact branch and bound, quick enough for online runs in CI
 SCENES = ["scene1", "scene2"]
 
 
@@ -22,7 +21,6 @@ def scene(name, *sets):
     return load_scenario(bundled_scenarios()[name]).with_overrides([f"merger.method={FAST}", *sets])
 
 
-@needs_fast
 @pytest.mark.parametrize("name", SCENES)
 @pytest.mark.parametrize("seed_offset", [0, 1])
 def test_exact_center_first_correct_merge_within_a_quarter_circle_and_no_false_merge(name, seed_offset):
@@ -40,7 +38,6 @@ def test_exact_center_first_correct_merge_within_a_quarter_circle_and_no_false_m
         assert r["first_merge_arc_deg"] < 90.0, robot
 
 
-@needs_fast
 @pytest.mark.parametrize("name", SCENES)
 def test_180_degree_hypotheses_occur_with_an_imprecise_center_and_verification_rejects_them(name):
     """Holds online once the center is off by 0.2 m: the point-symmetric pillars (and the nearly

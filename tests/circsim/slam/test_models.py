@@ -184,7 +184,8 @@ def hand_built_room():
 @pytest.mark.parametrize("offset", [(0.08, -0.06, 3.0), (-0.05, 0.04, -8.0), (0.0, 0.0, 15.0)])
 def test_matcher_recovers_a_known_pose_offset_in_a_hand_built_room(offset):
     """A map from scans at the true pose; a new scan from there, matched from a prediction off by
-    ``offset`` (metres, metres, degrees): the matcher finds the true pose within 1 cm and 0.2°."""
+    ``offset`` (metres, metres, degrees): the matcher finds the true pose within 1 cm and 0.2°. Every
+    offset is beyond that tolerance (> 5 cm or > 2°), so a matcher returning its prediction fails."""
     w = hand_built_room()
     pose = (0.5, -0.3, 0.4)
     w.set_robot_pose("r", *pose)
@@ -199,8 +200,6 @@ def test_matcher_recovers_a_known_pose_offset_in_a_hand_built_room(offset):
     m = scanmatch.match(slam.log_odds, slam.hits, slam.origin, 0.05, 3.5, px, py, nx, ny,
                         (dx, dy, math.radians(dyaw)), 0.1, math.radians(20.0), 1.0, 1.0)
     assert math.hypot(m.x, m.y) < 0.01 and yaw_err_deg(m.yaw, 0.0) < 0.2, (m, offset)
-    # the prediction alone is off: the matcher did the work
-    assert math.hypot(dx, dy) > 0.05 or abs(dyaw) > 2
 
 
 def drive(world, name, poses, cfg=None, laser_cfg=None, seed=0):

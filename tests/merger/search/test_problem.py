@@ -17,12 +17,21 @@ def alignment(query=None):
                      window_m=0.2, beyond_query=query)
 
 
-def test_an_alignment_is_frozen_and_its_fields_are_values():
+def test_an_alignment_is_frozen_and_what_it_derives_follows_its_fields():
     al = alignment()
     with pytest.raises(dataclasses.FrozenInstanceError):
         al.theta_deg = 1.0
-    assert al.counts == Counts(3, 1) and al.runner_up == (190.0, 0.25) and al.margin == pytest.approx(0.25)
-    assert al.beyond is None and al.to_dict()["beyond"] is None
+    assert al.margin == 0.25 and al.has_evidence  # score 0.5 - runner-up 0.25
+    assert al.theta_grid_deg == 12.0 and al.translation_grid_m == (0.0, 0.0)  # unrefined: the grid answer
+    d = al.to_dict()
+    assert (d["agree"], d["disagree"], d["support"]) == (3, 1, 4)
+    assert (d["runner_up_deg"], d["runner_up_score"]) == (190.0, 0.25)
+    assert al.beyond is None and d["beyond"] is None  # no guard asked
+    # numpy scalars in, plain floats out (the value pickles and serialises as JSON)
+    al = Alignment(1.0, 0.0, Counts(0, 0), "ncc", "fast", 8.0, np.zeros(360), (np.int64(190), np.float32(0.25)),
+                   translation_m=(np.float32(0.5), np.int64(-1)))
+    assert [type(v) for v in (*al.runner_up, *al.translation_m)] == [float] * 4
+    assert al.runner_up == (190.0, 0.25) and al.translation_m == (0.5, -1.0) and not al.has_evidence
 
 
 def test_the_guard_runs_once_on_first_access_even_from_many_threads(monkeypatch):

@@ -7,16 +7,6 @@ from merger.grid import OccupancyGrid
 from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MapInput, MergeParams, merge_orders, merge_team
-from merger.team.superpose import fuse, superpose
-
-U, F, O = 0, 1, 2
-
-
-def test_superpose_gives_priority_to_occupied():
-    a = np.array([U, U, U, F, F, F, O, O, O], np.uint8)
-    b = np.array([U, F, O, U, F, O, U, F, O], np.uint8)
-    assert superpose(a, b).tolist() == [U, U, O, U, F, O, O, O, O]
-    assert fuse([a, b]).tolist() == [U, F, O, F, F, O, O, O, O]
 
 
 def test_merge_orders_are_the_three_pairs_and_general_in_n():

@@ -20,9 +20,13 @@ def test_superpose_is_occupied_if_either_free_only_if_both():
     np.testing.assert_array_equal(superpose(a, b), np.array(want, np.uint8).reshape(3, 3))
 
 
-def test_fuse_is_known_where_any_map_is():
-    layers = [np.array([[UNKNOWN_S, FREE_S, UNKNOWN_S]], np.uint8), np.array([[UNKNOWN_S, OCCUPIED_S, FREE_S]], np.uint8)]
-    np.testing.assert_array_equal(fuse(layers), np.array([[UNKNOWN_S, OCCUPIED_S, FREE_S]], np.uint8))
+def test_fuse_is_known_where_any_map_is_and_occupied_first():
+    pairs = list(itertools.product(STATES, STATES))
+    a = np.array([p[0] for p in pairs], np.uint8).reshape(3, 3)
+    b = np.array([p[1] for p in pairs], np.uint8).reshape(3, 3)
+    want = [OCCUPIED_S if OCCUPIED_S in p else FREE_S if FREE_S in p else UNKNOWN_S for p in pairs]
+    np.testing.assert_array_equal(fuse([a, b]), np.array(want, np.uint8).reshape(3, 3))
+    np.testing.assert_array_equal(fuse([a]), a)  # one layer: itself
 
 
 def test_the_boundaries():

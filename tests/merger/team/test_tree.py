@@ -124,11 +124,6 @@ def test_tree_cycles_search_only_the_pairs_of_a_changed_map(monkeypatch):
     assert np.array_equal(second.merged.states, scratch.merged.states)
 
 
-def test_team_merger_rejects_an_unknown_strategy():
-    with pytest.raises(ValueError, match="strategy"):
-        TeamMerger("A", ("A", "B"), strategy="star")
-
-
 def test_tree_merges_every_robot_of_a_simulated_scene():
     """Scene 2, exact center: the tree merges every robot correctly, without a false merge."""
     from circsim.config.scenario import bundled_scenarios, load_scenario

@@ -122,7 +122,7 @@ def rotation_only(reps: int) -> None:
         roi = cells * 0.05
         (g0, c0), (g1, c1) = scaled_views(roi, 1)
         def make(g0=g0, g1=g1, c0=c0, c1=c1, roi=roi):
-            return RotationProblem(g0, g1, c0, c1, roi, "similarity")
+            return RotationProblem(g0, g1, c0, c1, roi, "similarity", 0.0)
         fast_search(make())  # warm-up
         bf_ms, bf = median_ms(opencv_brute_force, make, max(1, reps // 2))
         f_ms, f = median_ms(fast_search, make, reps)

@@ -84,14 +84,8 @@ class Robot:
 
 
 def merge_params(sc: Scenario) -> MergeParams:
-    m = sc.merger
-    return MergeParams(roi_m=m.roi_m, measure=m.measure, method=m.method, verification=m.verification,
-                       nu_min=m.nu_min, min_support=m.min_support, score_min=m.score_min, window_m=m.window_m,
-                       refine=m.refine, ambiguity_margin=m.ambiguity_margin,
-                       combine_orders=m.combine_orders, roi_min_support=m.roi_min_support,
-                       tolerance_m=m.tolerance_m, contrast_min=m.contrast_min, refine_whole=m.refine_whole,
-                       research=m.research, research_period_s=m.research_period_s,
-                       research_change=m.research_change, research_drop=m.research_drop)
+    """The scenario's merge parameters: every MergeParams setting of its ``merger`` section."""
+    return sc.merger.params()
 
 
 def truth_translation(theta_deg: float, e_i, e_j) -> tuple[float, float]:

@@ -11,8 +11,10 @@ from __future__ import annotations
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
 from .search import ROI_MIN_SUPPORT, SEARCH_METHODS, Alignment, RotationProblem, register_method, search
+from .search.problem import DEFAULT_ROI_M, DEFAULT_WINDOW_M
 from .team.online import MapMessage, TeamMerger
-from .team.orders import MapInput, MergeParams, OrderResult, TeamMergeResult, merge_orders, merge_team
+from .team.orders import merge_orders, merge_team
+from .team.params import MapInput, MergeParams, OrderResult, TeamMergeResult
 from .team.superpose import fuse, superpose
 from .team.verify import Verification, verify
 
@@ -25,8 +27,8 @@ __all__ = [
 ]
 
 
-def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = 8.0,
-          measure: str = "similarity", method: str = "fast", window_m: float = 0.5,
+def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = DEFAULT_ROI_M,
+          measure: str = "similarity", method: str = "fast", window_m: float = DEFAULT_WINDOW_M,
           refine: bool = True, roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
     """Find the rotation θ (and translation t) of ``moving`` about its center onto ``ref``.
 

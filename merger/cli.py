@@ -39,9 +39,11 @@ from .io.mapio import (
     overlay_png,
     write_files,
 )
-from .limits import MAX_ROI_M, MIN_ROI_CELLS
+from .limits import MAX_ROI_M
 from .measures import MEASURES
-from .search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, SEARCH_METHODS, check_roi_cells
+from .search import MAX_ROI_CELLS, SEARCH_METHODS
+from .search.problem import check_roi as roi_rule
+from .search.problem import check_window
 from .team.orders import MapInput, MergeParams, merge_team
 from .team.pool import threads
 from .team.verify import no_evidence
@@ -115,16 +117,12 @@ def check_center(grid, center, roi_m: float, what: str, path) -> None:
 
 
 def check_roi(roi_m: float, resolution: float, path) -> None:
-    """--roi in cells of the maps' resolution: at least :data:`MIN_ROI_CELLS`, at most the search's limit
-    (:data:`MAX_ROI_CELLS`)."""
+    """--roi in cells of the maps' resolution (the ROI's rule with the inputs' limits,
+    :func:`merger.search.problem.check_roi`)."""
     try:
-        check_roi_cells(roi_m, resolution)
+        roi_rule(roi_m, resolution, "--roi", limits=True, cells_of=str(path))
     except ValueError as e:
-        raise UsageError(f"--roi: {e} (cells of {path})") from None
-    if roi_m / resolution < MIN_ROI_CELLS:
-        raise UsageError(f"--roi: {roi_m:g} m is {roi_m / resolution:.3g} cells a side at "
-                         f"{resolution:g} m per cell ({path}): expected at least {MIN_ROI_CELLS} cells, "
-                         f"{MIN_ROI_CELLS * resolution:g} m")
+        raise UsageError(str(e)) from None
 
 
 def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> None:
@@ -227,13 +225,11 @@ def build_parser() -> argparse.ArgumentParser:
 def params_from(args) -> MergeParams:
     """The merge parameters of the command line, every value checked first (one-line errors naming the
     option); MergeParams's own ValueError is the last line of defence."""
-    if not (math.isfinite(args.roi) and 0 < args.roi <= MAX_ROI_M):
-        raise UsageError(f"--roi: expected the side of the region of interest, a number of metres in "
-                         f"(0, {MAX_ROI_M:g}], got {args.roi:g}")
-    most = MAX_WINDOW_FRACTION * args.roi
-    if not (math.isfinite(args.window) and 0 <= args.window <= most + 1e-12):
-        raise UsageError(f"--window: expected a number of metres in [0, {most:g}] (0: rotation only; at most a "
-                         f"quarter of the --roi side {args.roi:g} m), got {args.window:g}")
+    try:  # the merger's rules for the ROI (with the inputs' limits) and the window, naming the options
+        roi_rule(args.roi, key="--roi", limits=True)
+        check_window(args.window, args.roi, "--window", "the --roi side")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     if not (math.isfinite(args.nu_min) and 0.0 <= args.nu_min <= 1.0):  # ν is ω̃ on the whole maps, in [0, 1]
         raise UsageError(f"--nu-min: expected a number in [0, 1] (ν is ω̃ on the whole maps), got {args.nu_min:g}")
     if args.min_support < 0:

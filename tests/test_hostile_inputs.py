@@ -299,7 +299,7 @@ def test_refused_map_inputs_cost_no_memory_and_never_hang(tmp_path):
         (["align", office, office, "--center", "1e308,0"], "--center", "outside"),
         (["align", office, office, "--center", "1e7,0"], "--center", "office.yaml"),
         (["align", office, office, "--center", "0,0", "--roi", "1e-9", "--window", "0"], "--roi",
-         "at least 10 cells"),
+         "a side of 10 to 4000 cells"),
         (["demo", "--center-error", "1e308", "-o", tmp_path / "d"], "--center-error", "[0, 4]"),
         (["demo", "--radius", "1e308", "-o", tmp_path / "d"], "--radius", "(0, 2.4]"),
         (["demo", "--seed", "-1", "-o", tmp_path / "d"], "--seed", ">= 0"),

@@ -167,5 +167,6 @@ def scenario_reference() -> str:
         parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
     parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS,
                                     body=S.MIN_BODY_RADIUS_M, speed=S.MAX_SPEED_MPS))
-    parts.append(RESEARCH.format(drop=S.RESEARCH_DROP, change=S.RESEARCH_CHANGE, period=S.RESEARCH_PERIOD_S))
+    d = S.MergerSettings()  # the merger's defaults (merger.team.params.MergeParams)
+    parts.append(RESEARCH.format(drop=d.research_drop, change=d.research_change, period=d.research_period_s))
     return "".join(parts)

@@ -33,21 +33,16 @@ from merger.algorithms import ALGORITHMS
 from merger.limits import (
     MAX_ROI_M,
     MAX_YAML_BYTES,
-    MIN_ROI_CELLS,
     InputLimitError,
     load_yaml,
     one_line,
     read_input,
 )
-from merger.search import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, SEARCH_METHODS
-from merger.team.evidence import CONTRAST_MIN, TOLERANCE_M
-from merger.team.track import (
-    RESEARCH_CHANGE,
-    RESEARCH_DEFAULT,
-    RESEARCH_DROP,
-    RESEARCH_MODES,
-    RESEARCH_PERIOD_S,
-)
+from merger.measures import MEASURES
+from merger.search import SEARCH_METHODS
+from merger.search.problem import check_roi, check_window
+from merger.team.params import VERIFICATIONS, MergeParams
+from merger.team.track import RESEARCH_MODES
 
 from .geometry import check_geometry
 from .types import (
@@ -80,7 +75,9 @@ from .validate import (
     number,
     optional,
     optional_path,
+    refused,
     registered,
+    ruled,
     section,
     seq,
     string,
@@ -104,16 +101,11 @@ class ScenarioError(ValueError):
 
 
 @dataclass(frozen=True)
-class MergerSettings:
-    """Merger parameters as data; the simulation loop builds ``merger.MergeParams`` from them.
+class MergerSettings(MergeParams):
+    """The ``merger`` section: every setting of ``merger.MergeParams`` (the same names, defaults and rules:
+    constructing it checks them, :class:`merger.team.params.MergeParams`) and the bench's own keys below;
+    :meth:`params` is the MergeParams the simulation merges with.
 
-    window_m : translation window of the search, metres (±window_m on each axis around the given
-        centers, for centers known only roughly); 0 is the thesis's rotation-only search. At most
-        ``roi_m`` / 4.
-    refine : refine θ and t below the search grid (off: θ on the thesis's 0.1° grid, t in whole cells).
-    combine_orders : (strategy orders) the chosen placement is the mean of the accepted orders that agree
-        with the highest-Σν one within 10° and 0.2 m, when it verifies on the whole maps; off: the
-        highest-Σν order's own placement, the thesis's rule (``merger.MergeParams.combine_orders``).
     correct_tol_deg, correct_tol_m : ground truth, not merger parameters: an accepted alignment is correct
         when every angle error is ≤ ``correct_tol_deg`` and every translation error ≤ ``correct_tol_m``.
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
@@ -125,54 +117,29 @@ class MergerSettings:
     strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
         thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
         the team assembled along a maximum spanning tree of the verified pairs).
-    roi_min_support : the search's support floor, cells: a placement whose ROI support agr̃ + dis is
-        below it scores 0, so no optimum rests on a handful of cells (``merger.MergeParams.roi_min_support``;
-        0: the thesis's measure as defined).
-    verification : "auto" (default: a pair passes when "whole_map" or "contrast" passes it), "whole_map"
-        (the thesis: ω̃ ≥ ``nu_min`` on ``min_support`` cells; the thesis scenes pin it), "contrast" or
-        "roi_score" (``merger.MergeParams.verification``; docs/merging-real-maps.md).
-    refine_whole : placements the contrast rule accepted are refined on the whole maps and the merged map
-        drawn there (``merger.MergeParams.refine_whole``; the thesis scenes pin it off).
-    tolerance_m, contrast_min : verification "contrast" (maps from independent runs): walls this close
-        agree, and the placement's whole-map fit must stand this many times above its best rival
-        (``merger.MergeParams``; :mod:`merger.team.evidence`).
-    research : "on_change" (default) — a pair (or, with the orders strategy, the team's hypothesis) that
-        holds an accepted answer is re-verified at each new map version by an exact local search about it,
-        and searched globally only when that fails, its ν falls more than ``research_drop`` below the last
-        global search's, a map's ROI changed by more than ``research_change`` (fraction of its known cells)
-        since then, or ``research_period_s`` (default 10 s) passed; "every_version" — every map version
-        is searched globally, the thesis's behaviour (the thesis scenes pin it). ``merger.team.track``.
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.team.shared`). Off (default): every
         robot computes alone, as in the thesis.
+
+    The merge settings as the thesis scenes pin them: ``verification: whole_map`` (the thesis: ω̃ ≥
+    ``nu_min`` on ``min_support`` cells), ``refine_whole: false``, ``research: every_version`` (every map
+    version searched globally; the default ``on_change`` re-verifies a held answer by a local search,
+    :mod:`merger.team.track`); ``window_m: 0`` is the thesis's rotation-only search.
     """
 
-    roi_m: float = 8.0
-    measure: str = "similarity"
-    method: str = "fast"  # same answer as "reference" (property-tested; benchmarks/agree_search.py)
-    verification: str = "auto"
-    nu_min: float = 0.5
-    min_support: int = 200
-    roi_min_support: int = ROI_MIN_SUPPORT
-    tolerance_m: float = TOLERANCE_M
-    contrast_min: float = CONTRAST_MIN
-    score_min: float = 0.5
-    window_m: float = 0.5
-    refine: bool = True
-    refine_whole: bool = True
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
-    ambiguity_margin: float | None = None  # None: merger's default (0.05 with a window, 0 without)
-    combine_orders: bool = True
     min_maps: int | None = None
     strategy: str = "auto"
     algorithm: str = "thesis"
     share_hypotheses: bool = False
-    research: str = RESEARCH_DEFAULT
-    research_period_s: float = RESEARCH_PERIOD_S
-    research_change: float = RESEARCH_CHANGE
-    research_drop: float = RESEARCH_DROP
+
+    def params(self, keys=None, **given) -> MergeParams:
+        """The merge parameters of these settings: every MergeParams setting (only ``keys``: the others at
+        MergeParams's defaults), ``given`` ones replaced."""
+        names = [f.name for f in fields(MergeParams)] if keys is None else keys
+        return MergeParams(**{**{k: getattr(self, k) for k in names}, **given})
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -227,7 +194,7 @@ def _overridden(raw: dict, assignments, source: str) -> Scenario:
         culprits = [a for k, a in pairs
                     if e.path == k or e.path.startswith(k + ".") or k.startswith(e.path + ".")]
         label = " ".join(f"--set {a}" for a in (culprits or [a for _, a in pairs]))
-        raise ScenarioError(f"{source} ({label}): {e.path}: {e.message}") from None
+        raise ScenarioError(f"{source} ({label}): {e.text}") from None
 
 
 # DESIGN.md and the issues spell some keys without their unit; the scenario keys carry it. `--set` and
@@ -281,7 +248,7 @@ def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenar
     try:
         return _build(data, source)
     except Invalid as e:
-        raise ScenarioError(f"{source}: {e.path}: {e.message}") from None
+        raise ScenarioError(f"{source}: {e.text}") from None
 
 
 def scenario_to_dict(sc: Scenario) -> dict[str, Any]:
@@ -364,17 +331,35 @@ SLAM_SCHEMA = section(SlamConfig, {
     "linear_update_m": NON_NEGATIVE, "angular_update_rad": NON_NEGATIVE})
 NETWORK_SCHEMA = section(NetworkConfig, {"period_s": POSITIVE, "latency_s": NON_NEGATIVE, "jitter_s": NON_NEGATIVE,
                                    "loss": number(ge=0, lt=1)})
-MERGER_SCHEMA = section(MergerSettings, {
-    "roi_m": number(gt=0, le=MAX_ROI_M), "measure": choice("similarity", "birk_carpin", "ncc"),
-    "method": registered(SEARCH_METHODS, "search method"), "verification": choice("auto", "whole_map", "roi_score", "contrast"),
-    "nu_min": number(ge=0, le=1), "min_support": integer(ge=0), "score_min": number(),
-    "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
-    "window_m": NON_NEGATIVE, "refine": boolean, "refine_whole": boolean, "ambiguity_margin": optional(number(ge=0, le=1)),
-    "combine_orders": boolean,
+# The merger section's keys are MergerSettings's fields (MergeParams's and the bench's own; the reference
+# lists them in this order): a MergeParams setting without a check here fails the import. roi_m and window_m are checked by the
+# merger's own rules (merger.search.problem: check_roi with the inputs' limits, check_window); window_m
+# against roi_m and the ROI in cells of slam.resolution_m below (_build), the rest by constructing the
+# settings (MergeParams's __post_init__, _merger_section).
+MERGER_CHECKS = {
+    "roi_m": ruled(lambda v, key: check_roi(v, key=key, limits=True), f"a number in (0, {MAX_ROI_M:g}]"),
+    "measure": choice(*MEASURES), "method": registered(SEARCH_METHODS, "search method"),
+    "verification": choice(*VERIFICATIONS), "nu_min": number(ge=0, le=1), "min_support": integer(ge=0),
+    "score_min": number(), "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
+    "window_m": ruled(lambda v, key: check_window(v, None, key), "a number >= 0"), "refine": boolean,
+    "refine_whole": boolean, "ambiguity_margin": optional(number(ge=0, le=1)), "combine_orders": boolean,
     "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
     "strategy": choice("auto", "orders", "tree"), "algorithm": choice(*ALGORITHMS), "share_hypotheses": boolean,
     "research": choice(*RESEARCH_MODES), "research_period_s": number(gt=0, le=1e6),
-    "research_change": number(ge=0, le=1), "research_drop": number(ge=0, le=2)})
+    "research_change": number(ge=0, le=1), "research_drop": number(ge=0, le=2)}
+if set(MERGER_CHECKS) != {f.name for f in fields(MergerSettings)}:  # a setting added to MergeParams needs its check
+    raise ImportError(f"merger section: checks for {sorted(MERGER_CHECKS)}, settings "
+                      f"{sorted(f.name for f in fields(MergerSettings))}")
+MERGER_SCHEMA = section(MergerSettings, MERGER_CHECKS)
+
+
+def _merger_section(v, path: str = "merger") -> MergerSettings:
+    """The merger section checked key by key (MERGER_SCHEMA), then as a whole by MergeParams's rules
+    (a refusal names its key: ``merger.window_m``)."""
+    try:
+        return MERGER_SCHEMA(v, path)
+    except ValueError as e:
+        raise refused(e, join(path, e.key) if getattr(e, "key", None) else path) from None
 OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITIVE, "json": optional_path,
                                "merged_log_period_s": optional(NON_NEGATIVE)})
 TOP_KEYS = ("name", "description", "seed", "duration_s", "dt_s", "world", "robots", "laser", "slam",
@@ -403,16 +388,11 @@ def _build(data, source: str) -> Scenario:
     if cells > MAX_GRID_CELLS:
         raise bad("slam.size_m", f"a grid of at most {MAX_GRID_CELLS} cells a side (slam.size_m / "
                   f"slam.resolution_m = {cells:.0f})", slam.size_m)
-    merger = MERGER_SCHEMA(data.get("merger"), "merger")
-    roi_cells = merger.roi_m / slam.resolution_m
-    if not MIN_ROI_CELLS <= roi_cells <= MAX_ROI_CELLS:
-        raise bad("merger.roi_m", f"a side of {MIN_ROI_CELLS} to {MAX_ROI_CELLS} cells of slam.resolution_m "
-                  f"({slam.resolution_m:g} m): {MIN_ROI_CELLS * slam.resolution_m:g} to "
-                  f"{min(MAX_ROI_M, MAX_ROI_CELLS * slam.resolution_m):g} m", merger.roi_m)
-    top = MAX_WINDOW_FRACTION * merger.roi_m  # the merger's own limit (merger.search.check_window)
-    if merger.window_m > top + 1e-12:
-        raise bad("merger.window_m", f"a number in [0, {top:g}] (at most a quarter of merger.roi_m, "
-                  f"{merger.roi_m:g} m)", merger.window_m)
+    merger = _merger_section(data.get("merger"))  # window_m within a quarter of roi_m: MergeParams's rule
+    try:
+        check_roi(merger.roi_m, slam.resolution_m, "merger.roi_m", limits=True, cells_of="slam.resolution_m")
+    except ValueError as e:
+        raise refused(e, "merger.roi_m") from None
     one_tour = math.ceil(2 * math.pi * robots.radius_m / robots.speed_mps)
     duration_s = POSITIVE(data.get("duration_s", one_tour), "duration_s")
     dt_s = DT_S(data.get("dt_s", 0.1), "dt_s")

@@ -12,11 +12,12 @@ import math
 
 
 class Invalid(Exception):
-    """A value at ``path`` that does not fit; ``message`` says what was expected."""
+    """A value at ``path`` that does not fit; ``message`` says what was expected. ``text``, the one line
+    naming both, is ``path + sep + message`` (``sep`` "": a merger rule's words, which follow the key)."""
 
-    def __init__(self, path: str, message: str) -> None:
-        super().__init__(f"{path}: {message}")
-        self.path, self.message = path, message
+    def __init__(self, path: str, message: str, sep: str = ": ") -> None:
+        super().__init__(f"{path}{sep}{message}")
+        self.path, self.message, self.text = path, message, f"{path}{sep}{message}"
 
 
 def bad(path: str, expected: str, v) -> Invalid:
@@ -47,6 +48,25 @@ def number(gt=None, ge=None, lt=None, le=None, why: str = ""):
     check.bounds = bounds
     check.expected = "a number" + bounds
     check.why = why
+    return check
+
+
+def refused(e: ValueError, path: str) -> Invalid:
+    """A merger rule's refusal as an :class:`Invalid` at ``path``: the rule's words after the key when it
+    gives them (``rest``, :class:`merger.search.problem.SettingError`), else its whole message."""
+    rest = getattr(e, "rest", None)
+    return Invalid(path, rest, sep="") if rest is not None else Invalid(path, str(e))
+
+
+def ruled(rule, expected: str):
+    """A check that is a merger rule ``rule(value, key) -> value`` (one rule per setting, its message
+    naming ``key``: the scenario's key path); ``expected`` is its words for the scenario reference."""
+    def check(v, path):
+        try:
+            return rule(v, path)
+        except ValueError as e:
+            raise refused(e, path) from None
+    check.expected = expected
     return check
 
 

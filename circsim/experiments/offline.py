@@ -107,19 +107,25 @@ def default_search_method() -> str:
     return "fast"
 
 
+# What an offline method takes from the scenario's merger settings (the search's ROI, window, refinement,
+# ambiguity margin and support floor; the similarity method also its whole-map thresholds): the rest is the
+# method's own (measure, verification) or MergeParams's default (the thesis's two methods, not the bench's
+# strategy: no combine_orders, refine_whole or research of the scenario).
+FROM_SCENARIO = {"ncc": ("roi_m", "window_m", "refine", "ambiguity_margin", "roi_min_support"),
+                 "similarity": ("roi_m", "window_m", "refine", "ambiguity_margin", "roi_min_support", "nu_min",
+                                "min_support")}
+
+
 def method_params(sc: Scenario, method: str, settings: OfflineSettings) -> MergeParams:
-    """MergeParams of one offline method (ROI, translation window, refinement, ν_min and min_support from
-    the scenario)."""
-    m = sc.merger
+    """MergeParams of one offline method: its settings from the scenario (:data:`FROM_SCENARIO`), its
+    measure and verification, the search method of ``settings``."""
     search = settings.search_method or default_search_method()
     if method == "ncc":
-        return MergeParams(roi_m=m.roi_m, measure="ncc", method=search, verification="roi_score",
-                           score_min=settings.ncc_score_min, window_m=m.window_m, refine=m.refine,
-                           ambiguity_margin=m.ambiguity_margin, roi_min_support=m.roi_min_support)
+        return sc.merger.params(FROM_SCENARIO[method], measure="ncc", method=search, verification="roi_score",
+                                score_min=settings.ncc_score_min)
     if method == "similarity":
-        return MergeParams(roi_m=m.roi_m, measure="similarity", method=search, verification="whole_map",
-                           nu_min=m.nu_min, min_support=m.min_support, window_m=m.window_m, refine=m.refine,
-                           ambiguity_margin=m.ambiguity_margin, roi_min_support=m.roi_min_support)
+        return sc.merger.params(FROM_SCENARIO[method], measure="similarity", method=search,
+                                verification="whole_map")
     raise ValueError(f"unknown offline method {method!r}; expected one of {', '.join(METHODS)}")
 
 

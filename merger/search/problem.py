@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import OccupancyGrid
+from ..limits import MAX_ROI_M, MIN_ROI_CELLS
 from ..measures import MEASURES, Counts, Similarity, measure_fn
 from ..transform import extract_roi, roi_cells, rotated_roi
 
@@ -27,6 +28,10 @@ def window_cells(window_m: float, resolution: float) -> int:
 
 MAX_WINDOW_FRACTION = 0.25  # the translation window may cover at most a quarter of the ROI side
 MAX_ROI_CELLS = 4000  # ROI side in cells (100 m at 2.5 cm): the search's tables and OpenCV's 32,767 limits
+# The one default of each of the search's settings that a merge, the scenarios and the command lines share
+# (RotationProblem's, merger.team.params.MergeParams's and merger.align's defaults are these):
+DEFAULT_ROI_M = 8.0  # the ROI side, metres (the thesis's 8 m square)
+DEFAULT_WINDOW_M = 0.5  # the translation window, metres (centers trusted to ±0.5 m; 0: the thesis's rotation only)
 
 COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
@@ -48,19 +53,17 @@ class RotationProblem:
     moving: OccupancyGrid
     center_ref: tuple[float, float]
     center_moving: tuple[float, float]
-    roi_m: float = 8.0
+    roi_m: float = DEFAULT_ROI_M
     measure: str = "similarity"
-    window_m: float = 0.0
+    window_m: float = DEFAULT_WINDOW_M
     refine: bool = False
     min_support: int = 0
 
     def __post_init__(self) -> None:
         if self.measure not in MEASURES:
             raise ValueError(f"unknown measure {self.measure!r}; expected one of {', '.join(MEASURES)}")
-        if not (math.isfinite(self.roi_m) and self.roi_m > 0):
-            raise ValueError(f"roi_m must be a finite number > 0, got {self.roi_m}")
+        check_roi(self.roi_m, self.ref.resolution)
         check_window(self.window_m, self.roi_m)
-        check_roi_cells(self.roi_m, self.ref.resolution)
         if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
                 or not 0 <= self.min_support < 2 ** 40:
             raise ValueError(f"min_support must be a whole number of cells >= 0, got {self.min_support!r}")
@@ -88,7 +91,7 @@ class RotationProblem:
     def at(self, a: int, b: int) -> RotationProblem:
         """The rotation-only problem about the shifted reference center c_ref + t (the thesis's search)."""
         return RotationProblem(self.ref, self.moving, self.center_at(a, b), self.center_moving, self.roi_m,
-                               self.measure, min_support=self.min_support)
+                               self.measure, 0.0, min_support=self.min_support)
 
     @property
     def n(self) -> int:
@@ -294,23 +297,66 @@ def fine_angles(coarse_deg: float) -> np.ndarray:
     return coarse_deg + np.arange(-k, k + 1) * FINE_STEP_DEG
 
 
-def check_window(window_m: float, roi_m: float) -> None:
-    """A window must be a finite number in [0, roi_m / 4] (ValueError naming what was expected)."""
-    try:
-        w = float(window_m)
-    except (TypeError, ValueError):
-        raise ValueError(f"window_m must be a number of metres, got {window_m!r}") from None
+class SettingError(ValueError):
+    """A setting its rule refuses. ``key`` names the setting as the caller knows it (``window_m``, a
+    scenario's ``merger.window_m``, a command line's ``--window``) and ``rest`` is the rule's words after it:
+    the message is ``key + rest``, one line saying what was expected (a caller passes its own name of the
+    setting as the rule's ``key``; :func:`circsim.config.validate.refused` reads ``rest``)."""
+
+    def __init__(self, key: str, rest: str) -> None:
+        super().__init__(key + rest)
+        self.key, self.rest = key, rest
+
+
+def _metres(value, key: str, rest: str) -> float:
+    """``value`` as a float: a real number (not a bool, not text), else SettingError ``key`` + ``rest``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SettingError(key, rest.format(got=repr(value)))
+    return float(value)
+
+
+def check_window(window_m, roi_m=None, key: str = "window_m", roi_key: str = "the ROI side") -> float:
+    """The translation window's rule, the one check of every ``window_m`` (RotationProblem, MergeParams,
+    the scenario loader and the command lines call it): a finite number of metres in [0, ``roi_m`` / 4]
+    (``roi_m`` None: only >= 0). Returns it as a float; SettingError naming ``key`` (and the ROI side as
+    ``roi_key``) and what was expected otherwise."""
+    top = None if roi_m is None else MAX_WINDOW_FRACTION * roi_m
+    expected = ("expected a number of metres >= 0" if top is None else
+                f"expected a number of metres in [0, {top:g}] (at most a quarter of {roi_key}, {roi_m:g} m)")
+    w = _metres(window_m, key, " must be a number of metres, got {got}: " + expected)
     if not math.isfinite(w) or w < 0:
-        raise ValueError(f"window_m must be a finite number >= 0, got {window_m}")
-    if w > MAX_WINDOW_FRACTION * roi_m + 1e-12:
-        raise ValueError(f"window_m = {w:g} m is more than a quarter of the ROI side ({roi_m:g} m): "
-                         f"expected at most {MAX_WINDOW_FRACTION * roi_m:g} m (or a larger ROI)")
+        raise SettingError(key, f" must be a finite number >= 0, got {w:g}: {expected}")
+    if top is not None and w > top + 1e-12:
+        raise SettingError(key, f" = {w:g} m is more than a quarter of {roi_key} ({roi_m:g} m): expected at most "
+                                f"{top:g} m (or a larger ROI)")
+    return w
+
+
+def check_roi(roi_m, resolution: float | None = None, key: str = "roi_m", *, limits: bool = False,
+              cells_of: str = "") -> float:
+    """The ROI side's rule, the one check of every ``roi_m`` (RotationProblem, MergeParams, the scenario
+    loader and the command lines call it): a finite number of metres > 0 and, on a grid of ``resolution``,
+    at most :data:`MAX_ROI_CELLS` cells a side (the search's tables grow with its square). ``limits``: the
+    inputs' limits too (a scenario file, a command line: :mod:`merger.limits`), at most :data:`MAX_ROI_M`
+    and at least :data:`MIN_ROI_CELLS` cells a side. Returns it as a float; SettingError naming ``key``
+    (``cells_of``: what the resolution is, e.g. a map's path) and what was expected otherwise."""
+    span = f"in (0, {MAX_ROI_M:g}]" if limits else "> 0"
+    r = _metres(roi_m, key, f": expected a number of metres {span}, got {{got}}")
+    if not (math.isfinite(r) and r > 0) or (limits and r > MAX_ROI_M):
+        raise SettingError(key, f": expected a number {span}, got {r:g}")
+    if resolution is not None:
+        n, lo = r / resolution, (MIN_ROI_CELLS if limits else 0)
+        if not lo <= n <= MAX_ROI_CELLS:
+            top = min(MAX_ROI_M, MAX_ROI_CELLS * resolution) if limits else MAX_ROI_CELLS * resolution
+            side = f"{lo} to {MAX_ROI_CELLS}" if limits else f"at most {MAX_ROI_CELLS}"
+            of = f" of {cells_of}" if cells_of else ""
+            raise SettingError(key, f": expected a side of {side} cells{of} at {resolution:g} m per cell ("
+                                    f"{lo * resolution:g} to {top:g} m: a smaller ROI, or a coarser map), got "
+                                    f"{r:g} m ({n:.3g} cells)")
+    return r
 
 
 def check_roi_cells(roi_m: float, resolution: float) -> None:
     """The ROI side in cells (``roi_m`` / ``resolution``) must be at most :data:`MAX_ROI_CELLS`
-    (ValueError naming both numbers): the search's tables grow with its square."""
-    n = roi_m / resolution
-    if not n <= MAX_ROI_CELLS:
-        raise ValueError(f"an ROI of {roi_m:g} m is {n:.0f} cells a side at {resolution:g} m per cell: expected "
-                         f"at most {MAX_ROI_CELLS} (a smaller ROI, or a coarser map)")
+    (:func:`check_roi` on a grid; kept for its callers)."""
+    check_roi(roi_m, resolution)

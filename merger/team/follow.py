@@ -19,9 +19,6 @@ import time
 from ..grid import OccupancyGrid
 from .memo import Memo
 from .orders import (
-    MapInput,
-    MergeParams,
-    TeamMergeResult,
     Warps,
     _order_result,
     align_order,
@@ -30,6 +27,7 @@ from .orders import (
     place_on_frame0,
     refine_chosen,
 )
+from .params import MapInput, MergeParams, TeamMergeResult
 from .superpose import fuse
 from .track import Tracker, decide
 

@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 from ..grid import OccupancyGrid
 from .follow import merge_team_tracked
 from .memo import Memo
-from .orders import MapInput, MergeParams, TeamMergeResult, merge_team
+from .orders import merge_team
+from .params import MapInput, MergeParams, TeamMergeResult
 from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
 from .track import Tracker
 from .tree import merge_tree

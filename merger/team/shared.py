@@ -18,16 +18,8 @@ import time
 from dataclasses import dataclass
 
 from ..grid import OccupancyGrid
-from .orders import (
-    MapInput,
-    MergeParams,
-    OrderResult,
-    Placement,
-    TeamMergeResult,
-    Warps,
-    compose,
-    place_on_frame0,
-)
+from .orders import Warps, compose, place_on_frame0
+from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .superpose import fuse
 from .verify import pairwise
 

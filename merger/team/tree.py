@@ -58,12 +58,6 @@ from .memo import Memo, map_key
 from .orders import (
     AMBIGUOUS_DEG,
     AMBIGUOUS_M,
-    ORIGIN,
-    MapInput,
-    MergeParams,
-    OrderResult,
-    Placement,
-    TeamMergeResult,
     Warps,
     _beyond,
     _pair_key,
@@ -73,6 +67,7 @@ from .orders import (
     refine_chosen,
     shifted,
 )
+from .params import ORIGIN, MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .superpose import fuse
 from .track import Tracker, decide

@@ -212,7 +212,7 @@ def test_merge_params_value_error_is_the_last_line_of_defence(saved, monkeypatch
     """A value the CLI's own checks let through but MergeParams refuses is still a one-line error."""
     import merger.cli
 
-    monkeypatch.setattr(merger.cli, "MAX_WINDOW_FRACTION", 1.0)
+    monkeypatch.setattr(merger.cli, "check_window", lambda *a: None)
     d, paths, centers, _ = saved
     assert main(["align", str(paths[0]), str(paths[1]), "--center", centers[0], "--window", "3"]) == 2
     err = capsys.readouterr().err

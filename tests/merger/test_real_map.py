@@ -98,7 +98,7 @@ def test_rotation_recovered_on_real_map_views_and_fast_matches_reference(office,
     center, radius = place(office, where)
     (p1, g1, c1), (p2, g2, c2) = views(office, center, radius, (off1, off2), arc, starts=(90.0, 210.0))
     truth = math.degrees(p2[2] - p1[2]) % 360
-    prob = RotationProblem(g1, g2, c1, c2, 8.0, "similarity")
+    prob = RotationProblem(g1, g2, c1, c2, 8.0, "similarity", 0.0)
     fast, ref = search(prob, "fast"), search(prob, "reference")
     assert abs(angle_diff_deg(fast.theta_deg, truth)) <= 0.5, (fast.theta_deg, truth)
     assert abs(angle_diff_deg(fast.theta_deg, ref.theta_deg)) <= 0.1

@@ -102,7 +102,7 @@ def test_window_zero_is_the_thesis_search_bit_for_bit(seed):
     want = thesis_search(ga, gb, ca, cb, roi, MEASURES)
     for m in MEASURES:
         theta, sim = want[m]
-        plain = RotationProblem(ga, gb, ca, cb, roi, m)
+        plain = RotationProblem(ga, gb, ca, cb, roi, m, 0.0)  # the defaults but the window: the thesis's
         zero = RotationProblem(ga, gb, ca, cb, roi, m, window_m=0, refine=False)
         sub_cell = RotationProblem(ga, gb, ca, cb, roi, m, window_m=0.6 * RES, refine=False)  # K = 0
         assert sub_cell.window_cells == 0

@@ -76,6 +76,7 @@ def _set_path(data, path, value):
 @fuzz("scenario_data")
 @given(edits=st.lists(st.tuples(st.sampled_from(PATHS), values), min_size=1, max_size=3),
        extra=st.one_of(st.none(), st.tuples(st.text(max_size=8), values)))
+@pytest.mark.slow
 def test_scenario_loader_refuses_bad_values_in_one_line(edits, extra):
     data = copy.deepcopy(BASE_DATA)
     for path, value in edits:

@@ -289,6 +289,7 @@ def test_a_closed_pipe_is_not_an_error(tmp_path):
     assert proc.wait(timeout=60) in (0, 1) and "error" not in err, err
 
 
+@pytest.mark.slow
 def test_refused_map_inputs_cost_no_memory_and_never_hang(tmp_path):
     office = small_map(tmp_path / "office.yaml")
     os.mkfifo(tmp_path / "fifo.yaml")
@@ -320,6 +321,7 @@ def test_refused_map_inputs_cost_no_memory_and_never_hang(tmp_path):
     assert office.read_bytes() == before and not (tmp_path / "d").exists()
 
 
+@pytest.mark.slow
 def test_refused_run_outputs_and_inputs(tmp_path):
     sc = tmp_path / "s.yaml"
     sc.write_text(bundled_scenarios()["scene1"].read_text())
@@ -343,7 +345,7 @@ def test_refused_run_outputs_and_inputs(tmp_path):
     assert sc.read_bytes() == before and not list((tmp_path / "D").iterdir())
 
 
-@pytest.mark.parametrize("fsize", [400_000, 20_000])
+@pytest.mark.parametrize("fsize", [pytest.param(400_000, marks=pytest.mark.slow), 20_000])
 def test_a_full_disk_under_rrd_is_an_error_and_keeps_the_previous_recording(tmp_path, fsize):
     """Writes capped (RLIMIT_FSIZE: EFBIG, as ENOSPC on a full disk). At 400 kB the disk fills during the
     run: its figures are printed and its JSON written, then one error line names the recording, exit 2.
@@ -366,6 +368,7 @@ def test_a_full_disk_under_rrd_is_an_error_and_keeps_the_previous_recording(tmp_
     assert not list(tmp_path.glob(".*part*"))
 
 
+@pytest.mark.slow
 def test_a_huge_value_is_not_echoed_whole(tmp_path):
     """An error echoing a user's value is cut (a megabyte-long `image:` printed whole before)."""
     (tmp_path / "m.yaml").write_text("image: [" + ", ".join(["x"] * 200_000) + "]\nresolution: 0.05\n"

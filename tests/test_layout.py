@@ -10,6 +10,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 from tests.paths import REPO
 
 PACKAGES = ("merger", "circsim")
@@ -102,6 +104,7 @@ def test_no_import_cycle():
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
 
 
+@pytest.mark.slow
 def test_the_layering():
     """merger never imports circsim; only the world imports pymunk and only the recorder rerun; the
     configuration's types import nothing of ours; the bench does not depend on a CLI module."""

@@ -15,6 +15,7 @@ def _scene1(*sets):
     return load_scenario(bundled_scenarios()["scene1"]).with_overrides(["duration_s=6", *sets])
 
 
+@pytest.mark.slow
 def test_hough_merges_scene1_online_and_is_judged():
     sim = Simulation(_scene1("merger.algorithm=hough"))
     assert all(isinstance(r.merger, AlgorithmMerger) for r in sim.robots.values())

@@ -19,6 +19,7 @@ from merger.search import angle_diff_deg
 from tests.subproc import sigint_default, wait_for
 
 
+@pytest.mark.slow
 def test_sigterm_during_a_run_completes_the_recording_and_the_json(tmp_path):
     rrd, js = tmp_path / "t.rrd", tmp_path / "t.json"
     cmd = [sys.executable, "-m", "circsim.cli", "run", "scene1", "--set", "duration_s=60", "--rrd", str(rrd),
@@ -93,6 +94,7 @@ def test_empty_scenario_file_is_one_line_exit_2(tmp_path, capsys):
     assert err.count("\n") == 1 and "empty.yaml: empty scenario" in err
 
 
+@pytest.mark.slow
 def test_save_maps_feed_merger_merge(tmp_path, capsys):
     """`circsim run --save-maps DIR`: each robot's last map as map_server files and centers.yaml whose
     merge command, run as is, finds the run's ground truth."""

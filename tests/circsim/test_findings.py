@@ -13,6 +13,8 @@ from circsim.experiments.offline import OfflineSettings, default_search_method, 
 from circsim.experiments.sweep import HypothesisStats
 from circsim.sim import Simulation
 
+pytestmark = pytest.mark.slow  # every test runs the bundled scenes end to end (online or offline)
+
 FAST = default_search_method()  # "fast": the exact branch and bound, quick enough for online runs in CI
 SCENES = ["scene1", "scene2"]
 

@@ -111,6 +111,7 @@ class _Cycles(Observer):
         self.cycles.append(cycle)
 
 
+@pytest.mark.slow
 def test_with_exact_odometry_the_estimated_frame_errors_are_the_start_frame_errors():
     sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides(
         ["duration_s=8", "slam.model=odometry_only", "slam.drift.xy_m_per_m=0", "slam.drift.yaw_deg_per_m=0",
@@ -128,6 +129,7 @@ def test_with_exact_odometry_the_estimated_frame_errors_are_the_start_frame_erro
         assert [round(t, 6) for t, _, _ in m.slam_pose_error] == [float(k) for k in range(9)]
 
 
+@pytest.mark.slow
 def test_a_drifting_slam_makes_drift_limited_false_merges_and_they_are_logged():
     """The random-walk stress model with a strong yaw drift: the merger places the drifted maps as they
     were built (small estimated-frame errors) and the strict count calls that false."""

@@ -21,6 +21,7 @@ class Cycles(Observer):
         self.cycles.append(c)
 
 
+@pytest.mark.slow
 def test_lossy_network_robot_with_two_of_three_maps_merges_the_pair():
     """90% loss: every robot holds only one teammate's map for the whole run. With min_maps 2 it merges
     that pair correctly (no full merge, no false merge); with the whole team required it never merges."""

@@ -125,6 +125,7 @@ def _merged(maps, placed, res=0.05):
     return OccupancyGrid(fuse(layers), res, (float(lo[0]), float(lo[1])))
 
 
+@pytest.mark.slow
 def test_locate_finds_a_map_in_a_merged_grid(run):
     sim, _, out, maps = run
     truth = load_truth(out)
@@ -153,6 +154,7 @@ def _write_merged_bag(path, grids_at):
             w.write(conn, int(t * 1e9) + 1, ts.serialize_cdr(m, "nav_msgs/msg/OccupancyGrid"))
 
 
+@pytest.mark.slow
 def test_merged_bag_scores_right_and_wrong_placements(run, tmp_path, capsys):
     """A merged /map with every map at its true place: every robot merged at its stamp; with one map turned
     30° about its center: a false merge for each robot that sees it."""

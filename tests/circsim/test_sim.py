@@ -21,6 +21,7 @@ def scene(name, *sets):
     return load_scenario(bundled_scenarios()[name]).with_overrides(["merger.method=fast", *sets])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["scene1", "scene2"])
 def test_online_scene_merges_correctly_for_every_robot(name):
     sc = scene(name, "duration_s=20")
@@ -45,6 +46,7 @@ def test_online_scene_merges_correctly_for_every_robot(name):
                 assert err <= sc.merger.correct_tol_deg, (c.t, c.robot, j, th, true)
 
 
+@pytest.mark.slow
 def test_four_robots_merge_in_all_six_orders():
     """The bench and the team merge are general in N: four robots, N(N−1)/2 = 6 orders per cycle of
     all four maps (a partial team's cycle merges the m < N maps it holds in m(m−1)/2 orders)."""
@@ -64,6 +66,7 @@ def test_four_robots_merge_in_all_six_orders():
     assert all(r["first_merge_s"] is not None for r in res["robots"].values())
 
 
+@pytest.mark.slow
 def test_same_scenario_and_seed_give_identical_metrics():
     def metrics():
         d = Simulation(scene("scene2", "duration_s=8")).run().to_dict()
@@ -77,6 +80,7 @@ def test_same_scenario_and_seed_give_identical_metrics():
     assert c["params"] == a["params"] and c["seed"] == 99
 
 
+@pytest.mark.slow
 def test_reusing_unchanged_pair_alignments_changes_no_result():
     """Each robot reuses its own search of two unchanged maps (merger.team.online.TeamMerger.reuse); every
     merge cycle's evidence is the same as with every search done from scratch."""
@@ -145,6 +149,7 @@ def test_ctrl_c_stops_at_a_tick_boundary_so_every_observer_sees_the_same_events(
     assert sum(r.accepted for r in res.robots.values()) == Count.accepted > 0
 
 
+@pytest.mark.slow
 def test_out_of_order_maps_are_counted_as_stale_not_received():
     """With jitter as large as the send period, maps overtake each other: a map no newer than the one
     held is dropped (``maps_stale``); ``maps_received`` counts only the maps a robot took. Every send
@@ -212,6 +217,7 @@ def test_offline_motion_travels_no_arc():
     assert merged and all(r["first_merge_arc_deg"] == 0.0 for r in merged)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, sets", [
     ("scene1", ("duration_s=8", "merger.window_m=0.5", "center_error.magnitude_m=0.25")),  # orders, windowed
     ("hall4", ("duration_s=8",)),  # tree
@@ -243,6 +249,7 @@ def test_sharing_searches_between_robots_changes_no_result(name, sets):
     assert all(charged == 0.0 for _, charged in costs_b)
 
 
+@pytest.mark.slow
 def test_cycles_beside_the_next_tick_tell_the_same_events_in_the_same_order_as_one_thread(monkeypatch):
     """A tick's merge cycles run while the next tick's robots scan; observers still see every event in
     the order a single thread gives (``MERGER_THREADS=1`` runs the cycles in their own tick), with the

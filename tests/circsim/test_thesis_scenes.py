@@ -87,6 +87,7 @@ def test_thesis_scenes_pin_the_thesis_rule_while_the_default_is_auto(name):
 
 # The thesis's online experiment: first correct merges after 20–30 s, under a quarter circle; the issue's
 # band is a factor 1.5 either way (13.3–45 s, arc under 135°).
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["scene1-thesis", "scene2-thesis"])
 def test_thesis_scenes_first_merges_inside_the_thesis_band(name):
     sc = load_scenario(bundled_scenarios()[name]).with_overrides(["duration_s=40"])
@@ -98,6 +99,7 @@ def test_thesis_scenes_first_merges_inside_the_thesis_band(name):
         assert m.first_merge_arc_deg <= 90.0 * 1.5, (robot, m.first_merge_arc_deg)
 
 
+@pytest.mark.slow
 def test_agreeing_orders_combined_remove_the_sparse_maps_two_degree_false_merges():
     """scene2-thesis, seed 11: with the thesis's rule (the highest Σν order) Lyon at 15.9 s and 19.0 s and
     Nevers at 17.1 s accepted an order that put one sparse map 2.05° off (Σν 2.9051 vs the correct

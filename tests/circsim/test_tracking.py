@@ -3,6 +3,8 @@ version, no more false merges, and the tracker's work and the latency in the met
 
 from __future__ import annotations
 
+import pytest
+
 from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.sim import Simulation
 
@@ -12,6 +14,7 @@ def _run(name, *sets):
     return Simulation(sc).run().to_dict()
 
 
+@pytest.mark.slow
 def test_tracking_merges_as_early_as_searching_every_version_with_no_more_false_merges():
     sets = ("duration_s=12", "merger.window_m=0.5", "center_error=0.15")
     old = _run("hall4", *sets, "merger.research=every_version")

@@ -452,6 +452,7 @@ def test_a_refusal_names_its_rule_and_figures_in_text_json_and_title(off_center,
     assert "REJECTED, written with --force: the guard beyond the window: mov's best alignment" in title
 
 
+@pytest.mark.slow
 def test_the_evidence_of_the_contrast_rule_is_shown(saved, tmp_path, capsys):
     """With --verification contrast the title read "nu: 0.34 ACCEPTED" (as if ν ≥ 0.5 had been broken) and the
     contrast, its rival and the support were printed nowhere."""

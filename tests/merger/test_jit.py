@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from numba.core.registry import CPUDispatcher
 
 import circsim
@@ -54,6 +55,7 @@ def prepared(tmp_path: Path) -> None:
     assert len(cache_files(tmp_path, ".nbc")) == 4 and len(cache_files(tmp_path, ".nbi")) == 2
 
 
+@pytest.mark.slow
 def test_truncated_data_files_are_discarded_with_one_warning_and_the_cache_rewritten(tmp_path):
     """An .nbc cut to half (a full disk, a killed first compile): numba's own cache raised UnpicklingError
     on every later run."""
@@ -66,6 +68,7 @@ def test_truncated_data_files_are_discarded_with_one_warning_and_the_cache_rewri
     assert run_module(tmp_path) == (0, "9 7.5\n", [])  # rewritten: the next run loads it silently
 
 
+@pytest.mark.slow
 def test_a_garbled_index_is_discarded_with_one_warning(tmp_path):
     prepared(tmp_path)
     for f in cache_files(tmp_path, ".nbi"):

@@ -94,6 +94,7 @@ def test_widest_free_point_is_free_with_its_clearance(office):
 @settings(max_examples=8, deadline=None, derandomize=True)
 @given(where=st.sampled_from(sorted(CENTERS)), off1=st.floats(-180, 180), off2=st.floats(-180, 180),
        arc=st.floats(8.0, 30.0))
+@pytest.mark.slow
 def test_rotation_recovered_on_real_map_views_and_fast_matches_reference(office, where, off1, off2, arc):
     center, radius = place(office, where)
     (p1, g1, c1), (p2, g2, c2) = views(office, center, radius, (off1, off2), arc, starts=(90.0, 210.0))

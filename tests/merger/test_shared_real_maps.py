@@ -37,6 +37,7 @@ def merged(case, **params):
 HALMSTAD = ["halmstad F5_02->F5_01", "halmstad HIH_04->HIH_03", "halmstad E5_04->E5_02"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", HALMSTAD)
 def test_halmstad_pairs_from_independent_runs_merge_correctly_with_the_contrast_rule(name):
     """Three buildings' maps from separate runs, centers 0.5 m off, ROI 16 m: the contrast rule accepts
@@ -50,6 +51,7 @@ def test_halmstad_pairs_from_independent_runs_merge_correctly_with_the_contrast_
     assert correct(case, th2, t2) and not thesis.accepted and "ν_min" in thesis.reason
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["halmstad E5_01->E5_02", "halmstad HIH_02->HIH_01"])
 def test_the_defaults_merge_a_halmstad_pair_correctly_at_its_refined_placement(name):
     """With every parameter at its default (verification auto, the placement refined on the whole maps),
@@ -102,6 +104,7 @@ def test_aphill_pair_lands_on_the_independent_fit():
         assert abs(angle_diff_deg(th, th_fit)) < 0.5
 
 
+@pytest.mark.slow
 def test_a_long_corridor_that_looks_alike_both_ways_is_refused_not_merged_wrong():
     """UC Merced's long corridor at ROI 16 m: the search prefers a placement near the half turn of the
     fit (the corridor looks alike both ways) — the test checks that the answer is wrong here, so that it
@@ -115,6 +118,7 @@ def test_a_long_corridor_that_looks_alike_both_ways_is_refused_not_merged_wrong(
         assert not correct(case, th, t) and not res.accepted, (verification, th, th_fit, res.reason)
 
 
+@pytest.mark.slow
 def test_merger_merge_with_its_defaults_merges_real_maps_at_the_refined_placement(tmp_path, capsys):
     """`merger merge A B --center … --center … --roi 16 -o OUT --json` (nothing else): accepted, the JSON's
     placement is the refined one, correct against the refined truth, with the search's beside it; the files

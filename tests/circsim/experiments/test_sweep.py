@@ -53,6 +53,7 @@ def test_bad_grid_is_one_line_exit_2_and_runs_nothing(tmp_path, capsys, grid, wo
     assert not (tmp_path / "o" / RUNS_JSONL).exists()
 
 
+@pytest.mark.slow
 def test_pool_and_dask_give_the_same_rows(tmp_path):
     distributed = pytest.importorskip("distributed")
     tasks = plan(base(), parse_grid(["center_error=0,0.2"]), seeds=2)
@@ -75,6 +76,7 @@ def test_pool_and_dask_give_the_same_rows(tmp_path):
         assert k in row, k
 
 
+@pytest.mark.slow
 def test_cli_sweep_writes_tables_and_resume_skips_finished_rows(tmp_path, capsys):
     out = tmp_path / "sw"
     args = ["sweep", "scene1", "--grid", "center_error=0,0.1", "--seeds", "2", "--out", str(out), "--quiet",
@@ -118,6 +120,7 @@ def test_sweep_error_is_a_value_error():
         plan(base(), [], seeds=0)
 
 
+@pytest.mark.slow
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     from circsim.experiments.plan import ERRORS_JSONL, RunTask
 
@@ -160,6 +163,7 @@ def test_a_changed_base_scenario_is_not_resumed_as_finished():
 
 
 # --- issue 12: resume of another sweep, the dask extra, workers outliving their parent, SIGTERM ---------
+@pytest.mark.slow
 def test_resume_with_other_set_values_is_refused_naming_the_difference(tmp_path, capsys):
     out = tmp_path / "sw"
     args = ["sweep", "scene1", "--seeds", "1", "--out", str(out), "--quiet", "--workers", "1", "--no-plots",
@@ -297,6 +301,7 @@ def _die_in(task):
     return {"key": task.key}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("once", [True, False])
 def test_a_killed_worker_fails_only_its_own_run(tmp_path, once):
     """One SIGKILLed worker broke the whole process pool: every run still queued in it failed (issue 37).

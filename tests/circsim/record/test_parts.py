@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from circsim.record.parts import claim_part, release, remove_stale_parts
 from tests.subproc import wait_for
 
@@ -34,6 +36,7 @@ def test_a_dead_writer_s_part_goes_a_live_one_stays(tmp_path):
     assert remove_stale_parts(target) == [Path(live)] and other.exists()
 
 
+@pytest.mark.slow
 def test_a_sigkilled_run_s_part_is_removed_by_the_next_run(tmp_path):
     rrd = tmp_path / "out" / "scene1.rrd"
     rrd.parent.mkdir()

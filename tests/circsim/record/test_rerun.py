@@ -335,6 +335,7 @@ def short_run(tmp_path_factory):
     return SimpleNamespace(path=rrd, rec=read_recording(rrd), metrics=json.loads(js.read_text()))
 
 
+@pytest.mark.slow
 def test_run_recording_matches_the_metrics(short_run):
     rec, d = short_run.rec, short_run.metrics
     assert verify(short_run.path).returncode == 0
@@ -387,6 +388,7 @@ def test_run_recording_matches_the_metrics(short_run):
     assert json.loads(metrics_doc.split("```json\n")[1].split("\n```")[0])["robots"] == d["robots"]
 
 
+@pytest.mark.slow
 def test_ctrl_c_leaves_a_complete_readable_recording(tmp_path):
     rrd, js = tmp_path / "cut.rrd", tmp_path / "cut.json"
     cmd = [sys.executable, "-m", "circsim.cli", "run", "scene1", "--set", "duration_s=60", "--set",

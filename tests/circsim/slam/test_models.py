@@ -216,6 +216,7 @@ def drive(world, name, poses, cfg=None, laser_cfg=None, seed=0):
     return np.array(errs), slam
 
 
+@pytest.mark.slow
 def test_ten_laps_keep_the_pose_error_bounded():
     """scene1's Lyon drives ten laps of its circle (10 Hz, the default odometry noise): the pose error
     stays below 5 cm and 1° on every lap and does not grow from the first laps to the last."""
@@ -236,6 +237,7 @@ def test_ten_laps_keep_the_pose_error_bounded():
     assert slam.matches == len(times) - 1
 
 
+@pytest.mark.slow
 def test_featureless_corridor_error_grows_along_the_corridor_only():
     """A 60 m corridor, 2 m wide, its ends far beyond the laser's range: the scans constrain the cross
     position and the heading, not the position along the walls. Driving 20 m down its middle with a poor
@@ -288,6 +290,7 @@ def drive_in_formation(name, robot, laps, slam_cfg=None, seed=0):
     return np.array(errs), (times // lap_s).astype(int)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["Perth", "Dakar"])
 def test_a_robot_among_co_rotating_teammates_keeps_its_pose_error_bounded(robot):
     """hall8: 14 x 10 m under a 5.6 m laser, seven teammates on the robot's 2.5 m circle turning with it.

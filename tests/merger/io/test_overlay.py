@@ -36,6 +36,7 @@ def test_the_overlay_in_blocks_is_the_overlay_at_once(monkeypatch, cells):
     assert np.array_equal(OV.overlay_rgb(layers, names), _at_once(layers, names))
 
 
+@pytest.mark.slow
 def test_the_picture_of_a_large_canvas_is_cropped_and_coloured_in_blocks():
     layers = [np.zeros((3000, 3000), np.uint8) for _ in range(3)]
     for k, st in enumerate(layers):

@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -23,6 +24,7 @@ def test_angle_helpers():
     assert runner_up(prof, 20.0) == (200.0, 0.5)  # 25° is within 10° of the best peak
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), arc_shift=st.floats(-20.0, 20.0))
 def test_reference_recovers_rotation_of_independent_views(seed, theta, arc_shift):
@@ -50,6 +52,7 @@ def test_reference_recovers_rotation_of_independent_views(seed, theta, arc_shift
     assert al.profile.shape == (360,)
 
 
+@pytest.mark.slow
 @settings(max_examples=15, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 10_000), theta=st.floats(0.0, 359.9), roi=st.sampled_from([5.0, 6.4, 8.0]),
        shift=st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)))

@@ -33,6 +33,7 @@ def test_three_maps_merge_correctly(team_views):
     assert set(res.layers) == set(names)
 
 
+@pytest.mark.slow
 def test_accepted_orders_that_agree_are_combined_into_their_verified_mean(team_views):
     """combine_orders (default): the chosen placement is the mean of the accepted orders within 10° and
     0.2 m of the highest-Σν one, verified again on the whole maps; off, the thesis's highest-Σν order."""
@@ -94,6 +95,7 @@ def _same_result(a, b):
         assert np.array_equal(a.merged.states, b.merged.states)
 
 
+@pytest.mark.slow
 def test_online_cycles_reuse_the_search_of_an_unchanged_pair_with_the_same_result(monkeypatch):
     """A cycle after one map changed searches 5 of 6 alignments: the pair of the two unchanged maps is
     reused from the previous cycle; every figure equals a cycle computed from scratch."""

@@ -174,6 +174,7 @@ def test_the_observer_times_the_first_consensus_and_how_long_it_holds():
 
 
 # --- end to end -------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_sharing_end_to_end_on_scene1(tmp_path):
     """scene1, seed 1, 12 s: with sharing the robots weigh each other's hypotheses and adopt some, never a
     false one; they reach consensus no later than without (measured: 2.3 s both ways — the robots' first

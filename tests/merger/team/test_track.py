@@ -124,6 +124,7 @@ def test_a_wrong_answer_that_fails_reverification_is_replaced_at_the_next_cycle(
     assert tm.tracker.tracks[key].switches == 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("strategy", ["tree", "orders"])
 def test_a_wrong_lock_in_that_still_verifies_is_replaced_within_the_period_and_one_cycle(views, strategy):
     # a rule lenient enough that the wrong answer passes its local re-verification: only the staleness

@@ -124,6 +124,7 @@ def test_tree_cycles_search_only_the_pairs_of_a_changed_map(monkeypatch):
     assert np.array_equal(second.merged.states, scratch.merged.states)
 
 
+@pytest.mark.slow
 def test_tree_merges_every_robot_of_a_simulated_scene():
     """Scene 2, exact center: the tree merges every robot correctly, without a false merge."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
@@ -136,6 +137,7 @@ def test_tree_merges_every_robot_of_a_simulated_scene():
     assert all(math.isfinite(r.first_merge_s) for r in res.robots.values())
 
 
+@pytest.mark.slow
 def test_hall_of_four_robots_every_robot_places_every_teammate():
     """The bundled 4-robot hall (partial teams, tree): each robot first merges a pair, then the team."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
@@ -212,6 +214,7 @@ def test_pairs_that_did_not_verify_but_agree_with_the_tree_close_loops_in_the_ad
     assert adjust(place, {**chain_pairs, **excluded}, names, params) == place
 
 
+@pytest.mark.slow
 def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain():
     """The hall with 7 robots, seed 1: at 5.7 s a five-edge chain of the spanning tree (one verified loop)
     placed maps 2.04–2.15° off, two false merges; the weaker loops of the adjustment bring every placement
@@ -233,6 +236,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     assert sum(r.first_merge_s is not None for r in res.robots.values()) >= 5
 
 
+@pytest.mark.slow
 def test_the_scan_matching_slams_seven_robots_merge_without_false_merges():
     """The same hall with 7 robots and the default scan-matching SLAM: no false merge, all seven robots
     merge all maps correctly within 12 s."""

@@ -63,7 +63,7 @@ class MemoryProbe(Observer):
         if t + 1e-9 < self._next:
             return
         self._next += self.every_s
-        from merger.search import caches
+        from merger import caches
 
         cpu = time.process_time()
         s = {"t": t, "rss_mb": rss_mb(), "wall_s": time.perf_counter() - self._t0, "span_cpu_s": cpu - self._cpu,

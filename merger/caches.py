@@ -9,19 +9,24 @@ numpy arrays. Keys are cheap (geometry and a content digest, :func:`array_digest
 
 No answer depends on a cache (a cached value is a pure function of its key): :func:`clear_all` only
 returns memory, e.g. between the independent runs of a sweep worker. Callers outside the merger clear
-caches through it, never through a cache module of their own choosing (:mod:`merger.search.caches`
-holds the search's).
+caches through it.
+
+The search's own caches (below :class:`BoundedCache`): a merge cycle asks several questions of one
+problem object (the answer, then perhaps the runner-up, the guard beyond the window, a rival's values):
+they share one :class:`merger.search.searcher.Searcher` (its lattice tables and the moving ROIs it
+computed), kept by the problem's identity for the last ``MAX_ENTRIES`` problems; arrays of a moving
+map alone and of a reference geometry alone are kept likewise. Numba's on-disk cache of compiled
+kernels is separate (``NUMBA_CACHE_DIR``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import threading
+import weakref
 from collections import OrderedDict
 
 import numpy as np
-
-from .search import caches as search_caches
 
 
 def array_digest(a: np.ndarray) -> bytes:
@@ -93,8 +98,72 @@ class BoundedCache:
             self.hits = self.misses = 0
 
 
+MAX_ENTRIES = 8
+_LOCK = threading.Lock()
+_SEARCHERS: OrderedDict = OrderedDict()
+MOVING_ENTRIES = 16
+_MOVING: OrderedDict = OrderedDict()
+GEOMETRY_ENTRIES = 32
+_GEOMETRY: OrderedDict = OrderedDict()
+
+
+def _kept(store: OrderedDict, key, owner, factory, limit: int):
+    """``store[key]``'s value if it was made for ``owner`` (the object itself is held with the entry, so
+    an id is never mistaken for another's), else ``factory()`` kept there; the last ``limit`` entries."""
+    with _LOCK:
+        hit = store.get(key)
+        if hit is not None and hit[0] is owner:
+            store.move_to_end(key)
+            return hit[1]
+    value = factory()
+    with _LOCK:
+        store[key] = (owner, value)
+        while len(store) > limit:
+            store.popitem(last=False)
+    return value
+
+
+def searcher(problem, k, factory):
+    """The searcher of ``problem`` (window ``k`` cells; None: the problem's own), built by ``factory``."""
+    return _kept(_SEARCHERS, (id(problem), k), problem, lambda: factory(problem, k), MAX_ENTRIES)
+
+
+def moving_side(grid, key: tuple, factory):
+    """Arrays that depend on the moving map alone (and ``key``: its center, the ROI), kept for the
+    last ``MOVING_ENTRIES`` maps: a map is the moving map of several searches of a merge cycle."""
+    return _kept(_MOVING, (id(grid),) + key, grid, factory, MOVING_ENTRIES)
+
+
+def geometry(key: tuple, factory):
+    """Arrays that depend on a reference map's geometry alone (``key``: its origin, resolution, size, the
+    center, the ROI and the window), kept for the last ``GEOMETRY_ENTRIES`` geometries: a robot's map
+    keeps its frame and its center while it grows, so every version of it is prepared from the same."""
+    return _kept(_GEOMETRY, key, None, factory, GEOMETRY_ENTRIES)
+
+
+# the fast search's frontier per problem object, for as long as the problem lives (a runner-up search of
+# the same problem starts from it: merger.search.engine.exact_runner_up); keyed by the object itself, so
+# what a later search finds never depends on what else was cached meanwhile
+_FRONTIERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def keep_frontier(problem, frontier) -> None:
+    with _LOCK:
+        _FRONTIERS[problem] = frontier
+
+
+def frontier(problem):
+    """The frontier the fast search of ``problem`` left (None if it has not run)."""
+    with _LOCK:
+        return _FRONTIERS.get(problem)
+
+
 def clear_all() -> None:
-    """Forget every cache the merger keeps between calls: the search's prepared searchers and moving-map
-    arrays (:func:`merger.search.caches.clear_all`). A merge cycle's :class:`merger.team.memo.Memo` belongs
-    to its caller and goes with it."""
-    search_caches.clear_all()
+    """Forget every cache the merger keeps between calls: the search's searchers, moving-map arrays,
+    reference geometries and frontiers. A merge cycle's :class:`merger.team.memo.Memo` belongs to its
+    caller and goes with it."""
+    with _LOCK:
+        _FRONTIERS.clear()
+        _SEARCHERS.clear()
+        _MOVING.clear()
+        _GEOMETRY.clear()

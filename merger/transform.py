@@ -38,37 +38,6 @@ def sample_nearest(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
     return out
 
 
-def roi_cells(roi_m: float, resolution: float) -> int:
-    """Side of the square region of interest in cells (at least 1)."""
-    return max(1, int(round(roi_m / resolution)))
-
-
-def roi_offsets(n: int, resolution: float) -> np.ndarray:
-    """(n, n, 2) offsets of a square lattice of cell centres centred on (0, 0); row index grows with y."""
-    k = (np.arange(n) - (n - 1) / 2.0) * resolution
-    gx, gy = np.meshgrid(k, k)
-    return np.stack([gx, gy], axis=-1)
-
-
-def extract_roi(grid: OccupancyGrid, center, n: int) -> np.ndarray:
-    """The (n, n) states of ``grid`` on a square lattice of its own cell size centred on ``center``."""
-    return sample_nearest(grid, np.asarray(center, np.float64) + roi_offsets(n, grid.resolution))
-
-
-def rotated_roi(moving: OccupancyGrid, theta_deg: float, center_moving, center_ref, n: int,
-                resolution: float) -> np.ndarray:
-    """The moving map's region of interest rotated by θ, on the reference ROI lattice.
-
-    The moving ROI is the square of side ``n * resolution`` centred on ``center_moving`` in the moving
-    map's own frame (the thesis's roi_2); after rotation its corners leave the reference square and
-    the reference square's corners are unknown. Defined in :mod:`merger.search.lattice` (the one place
-    that computes a lattice point's lookup); ``center_ref`` does not enter (the lattice is relative).
-    """
-    from .search.lattice import moving_states_numpy
-
-    return moving_states_numpy(moving, theta_deg, center_moving, n, resolution)
-
-
 def warp_grid(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
               target: OccupancyGrid) -> OccupancyGrid:
     """Resample the whole ``moving`` grid into the geometry (shape, resolution, origin) of ``target``.

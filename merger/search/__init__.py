@@ -2,15 +2,19 @@
 
 Layout (an acyclic core; proofs in docs/design/search.md, cited as Lemma N):
 
-* :mod:`.lattice` — which cell each ROI lattice point reads (the one place; numpy spec + kernel);
-* :mod:`.measures` — one :class:`~.measures.Measure` per similarity measure: value and upper bound;
-* :mod:`.prepared` — a problem's lattice tables and bound tables;
-* :mod:`.kernels` — compiled exact counts, region bounds and the branch and bound;
 * :mod:`.problem` — :class:`RotationProblem`, :class:`Alignment` (a frozen value; the guard beyond the
   window, :class:`BeyondQuery`, answered lazily by :attr:`Alignment.beyond`);
+* :mod:`.lattice` — which cell each ROI lattice point reads (the one place; numpy spec + kernel);
+* :mod:`.prepared` — a problem's lattice and bound tables, handed to the kernels by name (``Tables``);
+* :mod:`.counts` — compiled exact counts at one element (Lemma 2);
+* :mod:`.bounds` — every bound of a region and its tables (Lemmas 3, 3b); :mod:`.polar` — the
+  rotation-only bounds of all whole degrees at once (Lemma 6); the measures' own bounds (Lemma 4) are
+  :func:`merger.measures.upper_of`;
+* :mod:`.bnb` — the branch and bound (Lemma 5); :mod:`.searcher` — one problem's searcher;
 * :mod:`.engine` — the searches: ``spec`` (numpy definition), ``reference`` (compiled exhaustive),
-  ``fast`` (branch and bound, the same answer), the exact runner-up and the guard beyond the window;
-* :mod:`.refine` — sub-cell refinement; :mod:`.caches` — the searcher cache and ``clear_all()``.
+  ``fast`` (branch and bound, the same answer) and the exact runner-up; :mod:`.guard` — the guard
+  beyond the window; :mod:`.local` — the search about an earlier answer; :mod:`.refine` — sub-cell
+  refinement. The caches are :mod:`merger.caches` (``clear_all()``).
 
 A method is a callable ``(problem) -> Alignment`` registered in :data:`SEARCH_METHODS`.
 """
@@ -19,16 +23,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from .caches import clear_all
-from .engine import (
-    beyond_window,
-    exact_runner_up,
-    fast_search,
-    reference_beyond,
-    reference_search,
-    searcher_for,
-    spec_search,
-)
+from ..caches import clear_all
+from .engine import exact_runner_up, fast_search, reference_search, spec_search
+from .guard import beyond_window, reference_beyond
 from .prepared import translation_offsets
 from .problem import (
     BEYOND_GUARDS,
@@ -51,6 +48,7 @@ from .problem import (
     wrap_deg,
 )
 from .refine import refine_alignment
+from .searcher import searcher_for
 
 # the guards an Alignment's BeyondQuery names (Alignment.beyond runs one on first access)
 BEYOND_GUARDS.update(fast=beyond_window, reference=reference_beyond)

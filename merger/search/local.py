@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .engine import COARSE, _fine, searcher_for
+from .engine import fine_answer
 from .prepared import translation_offsets
 from .problem import Alignment, angle_diff_deg, fine_angles, wrap_deg
 from .refine import refine_alignment
+from .searcher import COARSE, searcher_for
 
 LOCAL_HALF_DEG = 3  # coarse degrees each side of the earlier answer's coarse angle
 LOCAL_HALF_CELLS = 3  # cells each side of the earlier answer's translation (clipped to the window)
@@ -62,14 +63,8 @@ def local_search(problem, theta_deg: float, cells: tuple[int, int], half_deg: in
     s = searcher_for(problem)
     amask, ts = region(problem, theta_deg, cells, half_deg, half_cells)
     inc, env = s.run(COARSE, amask=amask, tmask=s.translation_mask(ts))
-    th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
-    angles, fine_env, kf = _fine(s, th_c, tc)
-    value, counts = s.exact(float(angles[kf]), *tc)
-    fine_vals = fine_env.copy()
-    fine_vals[kf] = value
-    for x in np.flatnonzero(fine_env >= value):  # the plateau exactly (the refinement reads it)
-        if x != kf:
-            fine_vals[x] = s.values(float(angles[x]), [tc])[0]
+    tc = (int(inc[4]), int(inc[5]))
+    angles, fine_vals, kf, value, counts = fine_answer(s, float(inc[3]), tc)
     profile = np.where(amask, env, -np.inf)
     return _alignment(problem, "fast-local", float(angles[kf]), value, counts, tc, angles, fine_vals, profile)
 

@@ -1,4 +1,4 @@
-"""Bounds of every whole-degree angle at once for one translation (docs/design/search.md §4, Lemma 6).
+"""Bounds of every whole-degree angle at once for one translation (docs/design/search.md, Lemma 6).
 
 Lattice point k of the reference ROI reads, under θ, the moving cell containing c_m + R(−θ)k, whose
 offset R(−θ)k has the polar coordinates (|k|, φ_k − θ) about c_m. With the moving frame cut into polar
@@ -21,14 +21,16 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .bounds import box_classes, inner_limit
 
 PAD = 1e-9  # metres and degrees: float rounding of the lookups (~1e-15 relative) is far below it
 
 
 @njit(cache=True, nogil=True)
-def polar_tables(cls_sat, mh, mw, res_m, mox, moy, mcx, mcy, half, ring_w, n_rings):
-    """(may_occ, not_sure_free) uint8 tables (n_rings, 360) of the moving map about c_m: each polar cell's
-    Cartesian bounding box (padded) read in the summed-area table of (occupied << 32 | free)."""
+def polar_tables(t, ring_w, n_rings):
+    """(may_occ, not_sure_free) uint8 tables (n_rings, 360) of the moving map of ``t`` about c_m: each
+    polar cell's Cartesian bounding box (padded) read in the summed-area table of (occupied << 32 | free)."""
+    mh, mw = t.mstates.shape
     may_occ = np.zeros((n_rings, 360), np.uint8)
     not_free = np.ones((n_rings, 360), np.uint8)
     co = np.empty(361)
@@ -36,10 +38,10 @@ def polar_tables(cls_sat, mh, mw, res_m, mox, moy, mcx, mcy, half, ring_w, n_rin
     for g in range(361):
         co[g] = math.cos(math.radians(g))
         si[g] = math.sin(math.radians(g))
-    inv = 1.0 / res_m
-    u0 = (mcx - mox) * inv
-    v0 = (mcy - moy) * inv
-    lim = half * (1.0 - 1e-12) - 1e-9
+    inv = 1.0 / t.res_m
+    u0 = (t.mcx - t.mox) * inv
+    v0 = (t.mcy - t.moy) * inv
+    lim = inner_limit(t.half)
     for ring in range(n_rings):
         ra = max(ring * ring_w - PAD, 0.0)
         rb = (ring + 1) * ring_w + PAD
@@ -61,14 +63,12 @@ def polar_tables(cls_sat, mh, mw, res_m, mox, moy, mcx, mcy, half, ring_w, n_rin
             c1 = math.floor(u0 + x_hi * inv + PAD)
             r0 = math.floor(v0 + y_lo * inv - PAD)
             r1 = math.floor(v0 + y_hi * inv + PAD)
-            if c1 < 0 or r1 < 0 or c0 >= mw or r0 >= mh:
+            meets, inside, occ, free = box_classes(t.cls_sat, mh, mw, r0, r1, c0, c1)
+            if not meets:
                 continue  # outside the grid: unknown
-            inside = c0 >= 0 and r0 >= 0 and c1 < mw and r1 < mh
-            both = (cls_sat[min(r1, mh - 1) + 1, min(c1, mw - 1) + 1] - cls_sat[max(r0, 0), min(c1, mw - 1) + 1]
-                    - cls_sat[min(r1, mh - 1) + 1, max(c0, 0)] + cls_sat[max(r0, 0), max(c0, 0)])
-            if (both >> 32) > 0:
+            if occ > 0:
                 may_occ[ring, g] = 1
-            elif inside and (both & 0xFFFFFFFF) == (r1 - r0 + 1) * (c1 - c0 + 1):
+            elif inside and free == (r1 - r0 + 1) * (c1 - c0 + 1):
                 if max(abs(x_lo), abs(x_hi), abs(y_lo), abs(y_hi)) < lim:
                     not_free[ring, g] = 0
     return may_occ, not_free

@@ -1,9 +1,9 @@
 """A problem's arrays, built once per search: the lattice tables, their preimages and the bound tables.
 
 :class:`Prepared` turns a :class:`merger.search.problem.RotationProblem` (with its window of ±K cells)
-into the arrays the kernels read (:mod:`merger.search.kernels`):
+into the arrays the kernels read, by name (:class:`Tables`):
 
-* ``cols``/``rows`` — :func:`merger.search.lattice.ref_axes_numpy`: the reference cell each lattice
+* ``cols``/``rows`` — :func:`merger.lattice.ref_axes_numpy`: the reference cell each lattice
   column (row) reads at each translation; ``ilo/ihi``, ``jlo/jhi`` — their preimages: the lattice rows
   (columns) reading a reference row (column), a contiguous range because the tables are monotone;
 * ``qr, qc`` — the reference's occupied cells that some translation reads, and ``blk``/``lvl_start``
@@ -14,21 +14,66 @@ into the arrays the kernels read (:mod:`merger.search.kernels`):
 * ``tsum``: per translation, the reference ROI's occupied (NCC) or free (Birk–Carpin) lattice points.
 
 Everything here is exact integer bookkeeping; the floats of the lookups are those of
-:mod:`merger.search.lattice`.
+:mod:`merger.lattice`.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
+from .. import caches
 from ..grid import FREE_S, OCCUPIED_S
 from ..jit import njit
-from . import caches
-from .kernels import LEVELS
-from .lattice import lattice_offsets, ref_axes_numpy
-from .measures import measure
+from ..lattice import axis_floor, half_side, ref_axes_numpy
+from ..measures import OCCUPIED_SUMS, measure
+
+LEVELS = 5  # reference blocks of 1, 2, 4, 8, 16 cells (the region bound's pooled levels)
+
+
+class Tables(NamedTuple):
+    """A problem's arrays as the kernels read them, by name (built by :class:`Prepared`)."""
+
+    n: int  # the ROI lattice: n × n points one reference cell (res) apart
+    k: int  # the window: translations −k..k cells each way
+    side: int  # 2k + 1
+    res: float
+    res_m: float  # the moving map's resolution, origin and center
+    mox: float
+    moy: float
+    mcx: float
+    mcy: float
+    half: float  # n·res/2
+    code: int  # the measure (merger.measures): its code, support floor and the counts it needs
+    floor: int
+    need_ff: bool
+    sums: int
+    ref: np.ndarray  # the reference's states
+    cols: np.ndarray  # (side, n): the reference column (row) each lattice column (row) reads, −1 outside
+    rows: np.ndarray
+    rlo: int  # the first reference row (column) some translation reads
+    clo: int
+    ilo: np.ndarray  # (side, rows): the lattice rows [ilo, ihi) reading each reference row; jlo/jhi columns
+    ihi: np.ndarray
+    jlo: np.ndarray
+    jhi: np.ndarray
+    axes_r: np.ndarray  # (base, dev, mult, lo) per axis (Lemma 1)
+    axes_c: np.ndarray
+    qr: np.ndarray  # the reference's occupied cells some translation reads
+    qc: np.ndarray
+    blk: np.ndarray  # those cells pooled in blocks, levels 0..LEVELS−1 (Prepared._blocks)
+    blkf: np.ndarray
+    lvl_start: np.ndarray
+    wr0: np.ndarray  # per translation, how many lattice rows (columns) read each occupied cell
+    wc0: np.ndarray
+    ref_sat: np.ndarray  # summed-area table of the readable reference's (occupied << 32 | free)
+    mstates: np.ndarray  # the moving map's states, its summed-area table, its occupied cell centres
+    cls_sat: np.ndarray
+    occ_x: np.ndarray
+    occ_y: np.ndarray
+    tsum: np.ndarray  # per translation: the reference ROI's count table (NCC occupied, Birk–Carpin free)
 
 
 def translation_offsets(k: int) -> list[tuple[int, int]]:
@@ -52,15 +97,6 @@ def rank_table(k: int) -> np.ndarray:
         out[(b + k) * side + (a + k)] = r
     out.flags.writeable = False
     return out
-
-
-def _raw_axis(center: float, origin: float, res: float, n: int, k: int) -> np.ndarray:
-    off = lattice_offsets(n, res)
-    tab = np.empty((2 * k + 1, n), np.float64)
-    for a in range(-k, k + 1):
-        c = center + a * res if a else center
-        tab[a + k] = np.floor(((c + off) - origin) / res)
-    return tab
 
 
 def _axis(raw: np.ndarray, size: int):
@@ -130,13 +166,15 @@ def _occupied_near(ms, ox0, oy0, res, cmx, cmy, half):
     return xs[:n].copy(), ys[:n].copy()
 
 
-def _moving_arrays(mov, ms, cm, half):
-    """The moving map's :func:`class_sat` and the centres about c_m (metres) of the occupied cells a
-    lattice point can read."""
-    h, w = ms.shape
-    ox, oy = _occupied_near(ms, float(mov.origin[0]), float(mov.origin[1]), float(mov.resolution),
-                            float(cm[0]), float(cm[1]), float(half))
-    return class_sat(ms, 0, h, 0, w), ox, oy
+def occupied_centres(problem) -> tuple[np.ndarray, np.ndarray]:
+    """The centres about c_m (metres, x and y) of the moving map's occupied cells within the ROI's half
+    side + one cell of c_m, row-major: the cells a lattice point can read (kept per moving map)."""
+    mov = problem.moving
+    cm = (float(problem.center_moving[0]), float(problem.center_moving[1]))
+    half = half_side(problem.n, problem.ref.resolution)
+    return caches.moving_side(mov, ("occupied", cm, half), lambda: _occupied_near(
+        np.ascontiguousarray(mov.states), float(mov.origin[0]), float(mov.origin[1]), float(mov.resolution),
+        cm[0], cm[1], float(half)))
 
 
 @njit(cache=True, nogil=True)
@@ -186,8 +224,8 @@ def _reference_axes(ref, center_ref, n, k):
            n, k)
     return caches.geometry(key, lambda: (
         ref_axes_numpy(ref, center_ref, n, k),
-        _axis(_raw_axis(center_ref[0], ref.origin[0], ref.resolution, n, k), ref.width),
-        _axis(_raw_axis(center_ref[1], ref.origin[1], ref.resolution, n, k), ref.height)))
+        _axis(axis_floor(center_ref[0], ref.origin[0], ref.resolution, n, k), ref.width),
+        _axis(axis_floor(center_ref[1], ref.origin[1], ref.resolution, n, k), ref.height)))
 
 
 class Prepared:
@@ -229,14 +267,26 @@ class Prepared:
         self.wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
         ms = np.ascontiguousarray(mov.states)
         self.mstates = ms
-        half = n * self.res / 2.0
+        half = half_side(n, self.res)
         cm = (float(problem.center_moving[0]), float(problem.center_moving[1]))
-        self.cls_sat, self.occ_x, self.occ_y = caches.moving_side(
-            mov, ("prepared", cm, half), lambda: _moving_arrays(mov, ms, cm, half))
+        self.cls_sat = caches.moving_side(mov, ("sat",), lambda: class_sat(ms, 0, ms.shape[0], 0, ms.shape[1]))
+        self.occ_x, self.occ_y = occupied_centres(problem)
         self.rank = rank_table(self.k)
         self.tsum = self._tsum()
-        self.ctx_f = np.array([self.res, mov.resolution, mov.origin[0], mov.origin[1],
-                               float(problem.center_moving[0]), float(problem.center_moving[1]), half])
+        self.half = half
+        ms_ = self.measure
+        self.tables = Tables(
+            int(n), int(self.k), int(side), float(self.res), float(mov.resolution), float(mov.origin[0]),
+            float(mov.origin[1]), cm[0], cm[1], float(half), int(ms_.code), self.floor, bool(ms_.needs_free_agree),
+            int(ms_.sums), self.ref, self.cols, self.rows, int(rlo), int(clo), self.ilo, self.ihi, self.jlo, self.jhi,
+            self.axes_r, self.axes_c, self.qr, self.qc, self.blk, self.blkf, self.lvl_start, self.wr0, self.wc0,
+            self.ref_sat, ms, self.cls_sat, self.occ_x, self.occ_y, self.tsum)
+
+    @property
+    def moving_key(self) -> tuple:
+        """The moving side's geometry (resolution, origin, center, half side): a key of its cached arrays."""
+        t = self.tables
+        return (t.res_m, t.mox, t.moy, t.mcx, t.mcy, t.half)
 
     def _blocks(self):
         """The occupied cells pooled in blocks of 2^l cells, levels 0..LEVELS−1: per block its first row
@@ -265,9 +315,9 @@ class Prepared:
     def _tsum(self) -> np.ndarray:
         """Per translation (b·side + a): the reference ROI's occupied (NCC) or free (Birk–Carpin) points."""
         kind = self.measure.sums
-        if kind == 0 or self.empty_ref:
+        if not kind or self.empty_ref:
             return np.zeros(self.side * self.side, np.int64)
-        state = OCCUPIED_S if kind == 2 else FREE_S
+        state = OCCUPIED_S if kind == OCCUPIED_SUMS else FREE_S
         rlo, clo = int(self.axes_r[3]), int(self.axes_c[3])
         # the ROI at (a, b) reads cell (r, c) (ihi − ilo)[b, r] · (jhi − jlo)[a, c] times
         nr = (self.ihi - self.ilo).astype(np.float64)

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import OccupancyGrid
+from ..lattice import extract_roi, roi_cells, rotated_roi
 from ..limits import MAX_ROI_M, MIN_ROI_CELLS
 from ..measures import MEASURES, Counts, Similarity, measure_fn
-from ..transform import extract_roi, roi_cells, rotated_roi
 
 
 def window_cells(window_m: float, resolution: float) -> int:

@@ -18,6 +18,8 @@ import cv2
 import numpy as np
 
 from ..grid import OCCUPIED_S
+from ..lattice import half_side
+from .prepared import occupied_centres
 from .problem import fine_angles, wrap_deg
 
 REMAP_MAX_COLS = 32_000  # cv2.remap asserts fewer than SHRT_MAX (32,767) columns and rows in its maps
@@ -85,7 +87,7 @@ def refine_alignment(problem, al, evaluator=None):
         angles, vals = al.fine
     else:
         angles = fine_angles(theta_g)
-        from .engine import searcher_for
+        from .searcher import searcher_for
 
         vals = searcher_for(problem).values_at_angles(angles, (a0, b0))
     angles = np.asarray(angles, np.float64)
@@ -98,23 +100,14 @@ def refine_alignment(problem, al, evaluator=None):
 
 
 def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, float]]:
-    ref, mov = problem.ref, problem.moving
+    ref = problem.ref
     res = ref.resolution
     n = problem.n
-    half = n * res / 2.0
+    half = half_side(n, res)
     w_m = problem.window_m if problem.window_cells > 0 else 0.0
-    # moving ROI's occupied cell centres, relative to the moving center (metres)
-    cm = np.asarray(problem.center_moving, np.float64)
-    rm = mov.resolution
-    c0 = max(int(math.floor((cm[0] - half * math.sqrt(2) - mov.origin[0]) / rm)), 0)
-    c1 = min(int(math.ceil((cm[0] + half * math.sqrt(2) - mov.origin[0]) / rm)), mov.width)
-    r0 = max(int(math.floor((cm[1] - half * math.sqrt(2) - mov.origin[1]) / rm)), 0)
-    r1 = min(int(math.ceil((cm[1] + half * math.sqrt(2) - mov.origin[1]) / rm)), mov.height)
-    if c0 >= c1 or r0 >= r1:
-        return theta0, (float(t0[0]), float(t0[1]))
-    rr, cc = np.nonzero(mov.states[r0:r1, c0:c1] == OCCUPIED_S)
-    p = np.stack([mov.origin[0] + (cc + c0 + 0.5) * rm, mov.origin[1] + (rr + r0 + 0.5) * rm], axis=1) - cm
-    p = p[(np.abs(p) < half).all(axis=1)]  # inside the moving ROI's square
+    # moving ROI's occupied cell centres, relative to the moving center (metres), inside its square
+    p = np.stack(occupied_centres(problem), axis=1)
+    p = p[(np.abs(p) < half).all(axis=1)]
     if p.shape[0] < 3:
         return theta0, (float(t0[0]), float(t0[1]))
     # the reference's occupied cells around c_ref, blurred

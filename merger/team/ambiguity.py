@@ -216,7 +216,7 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     two hypotheses both fail it is not reported (nothing to choose between). When the pair is ambiguous
     and unresolved the best alignment is returned with the record, whose ``used``
     is False: the caller does not use the pair."""
-    # one searcher for both rivals: the search's own (its lattice tables), kept by merger.search.caches
+    # one searcher for both rivals: the search's own (its lattice tables), kept by merger.caches
     ev = searcher_for(problem) if margin > 0 else None
     rivals = [r for r in (rival(problem, al, margin, ev), shift_rival(problem, al, margin, ev)) if r is not None]
     if not rivals:

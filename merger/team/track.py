@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grid import UNKNOWN_S
+from ..lattice import extract_roi, roi_cells
 from ..search import angle_diff_deg
-from ..transform import extract_roi, roi_cells
 
 RESEARCH_MODES = ("on_change", "every_version")
 RESEARCH_DEFAULT = "on_change"

@@ -1,13 +1,13 @@
 """Bounded caches: LRU order, entry and byte bounds, content keys; and the search's one cache
-(:mod:`merger.search.caches`) staying within its bound over many merge cycles with changing maps (a long
+(:mod:`merger.caches`) staying within its bound over many merge cycles with changing maps (a long
 run must not grow), its answers equal to those computed after :func:`merger.caches.clear_all`."""
 
 import numpy as np
 import pytest
 
+from merger import caches
 from merger.caches import BoundedCache, array_digest
 from merger.grid import OccupancyGrid
-from merger.search import caches
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams, merge_team
 from tests.strategies import three_views
@@ -56,7 +56,7 @@ def _perturbed(grid: OccupancyGrid, rng) -> OccupancyGrid:
     return OccupancyGrid(s, grid.resolution, grid.origin)
 
 
-@pytest.mark.parametrize("window_m", [0.0, 0.2])
+@pytest.mark.parametrize("window_m", [0.0, pytest.param(0.2, marks=pytest.mark.slow)])
 def test_caches_stay_within_their_bounds_over_many_cycles(window_m):
     """Every cycle brings a new map; the searcher cache never holds more than its bound, the pair reuse
     holds only the current pairs, and a cycle equals one computed with an empty cache."""

@@ -2,12 +2,11 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
+from merger.lattice import extract_roi, rotated_roi
 from merger.transform import (
     apply_alignment,
     canvas,
-    extract_roi,
     paste,
-    rotated_roi,
     sample_nearest,
     warp_grid,
 )

@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+from merger.lattice import moving_states, moving_states_numpy, rotation_entries
 from merger.search import (
     RotationProblem,
     beyond_window,
@@ -26,8 +27,6 @@ from merger.search import (
     searcher_for,
     spec_search,
 )
-from merger.search.kernels import fill_moving
-from merger.search.lattice import moving_states_numpy, rotation_entries
 from merger.synthetic import window_case
 from tests.strategies import adversarial_problem, random_grid, random_point
 
@@ -48,13 +47,13 @@ def test_compiled_moving_states_equal_the_numpy_specification(seed, theta):
     n = 24 + seed
     want = moving_states_numpy(g, theta, c, n, 0.05)
     dense = np.empty(n * n, np.uint8)
-    pocc = np.empty(n * n, np.int32)
-    no, nf = fill_moving(g.states, g.resolution, g.origin[0], g.origin[1], c[0], c[1], n, 0.05,
-                         *rotation_entries(theta), dense, pocc)
+    no, nf = moving_states(g.states, g.resolution, g.origin[0], g.origin[1], c[0], c[1], n, 0.05,
+                           *rotation_entries(theta), dense)
     np.testing.assert_array_equal(dense.reshape(n, n), want)
     assert (no, nf) == (int((want == 2).sum()), int((want == 1).sum()))
 
 
+@pytest.mark.slow
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), window=st.booleans())
 def test_reference_equals_spec_and_fast_equals_reference(seed, measure, window):
@@ -96,6 +95,7 @@ def test_first_max_is_the_loop_over_angles_and_translations(seed, measure, centr
     assert s.first_max(angles, ts) == top
 
 
+@pytest.mark.slow
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), window=st.booleans())
 def test_the_runner_up_seeded_by_the_fast_search_is_the_same(seed, measure, window):
@@ -111,6 +111,7 @@ def test_the_runner_up_seeded_by_the_fast_search_is_the_same(seed, measure, wind
             assert seeded == scratch or (np.isnan(seeded[0]) and np.isnan(scratch[0]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["views", "symmetric", "sparse", "identical", "noise"])
 @pytest.mark.parametrize("seed", range(3))
 def test_fast_equals_the_compiled_reference_at_full_size(kind, seed):
@@ -125,6 +126,7 @@ def test_fast_equals_the_compiled_reference_at_full_size(kind, seed):
             assert exact_runner_up(p, fast.theta_deg) == ref.runner_up
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["views", "symmetric", "noise", "identical"])
 @pytest.mark.parametrize("seed", range(3))
 def test_rotation_only_fast_equals_the_reference_at_full_size(kind, seed):
@@ -137,6 +139,7 @@ def test_rotation_only_fast_equals_the_reference_at_full_size(kind, seed):
         assert np.all(fast.profile >= ref.profile) and np.all(fast.profile <= ref.profile.max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["centre", "corner"])
 def test_centers_on_cell_borders_at_full_size(mode):
     c = window_case(1, "views", roi_m=(6.0, 6.0), window_m=(0.25, 0.25))

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 import merger
 from merger import load_map
 from merger.grid import OccupancyGrid
+from merger.lattice import extract_roi, roi_cells, rotated_roi
 from merger.measures import measure_fn
 from merger.search import (
     MAX_WINDOW_FRACTION,
@@ -48,7 +49,7 @@ from merger.synthetic import (
 )
 from merger.team.orders import MapInput, MergeParams, merge_team, place_on_frame0
 from merger.team.verify import verify
-from merger.transform import extract_roi, roi_cells, rotated_roi, rotation
+from merger.transform import rotation
 from tests.paths import REAL_MAP
 from tests.strategies import three_views
 
@@ -404,6 +405,7 @@ def test_rotation_and_translation_recovered_with_a_rough_center(kind, seed):
 
 
 # The guard beyond the window: "views" seeds with the moving center off by up to 1.8 × the window per axis.
+@pytest.mark.slow
 def test_the_guard_finds_the_truth_outside_the_window():
     """Every case whose true translation lies outside ±0.5 m but inside the guard's ±1.0 m (less a cell),
     and whose in-window answer is therefore another peak (more than 10° or 0.2 m from the truth): the

@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from ..grid import UNKNOWN_S
-from ..jit import njit
+from .grid import UNKNOWN_S
+from .jit import njit
 
 
 def rotation_entries(theta_deg: float) -> tuple[float, float, float, float]:
@@ -32,6 +32,12 @@ def rotation_entries(theta_deg: float) -> tuple[float, float, float, float]:
     t = math.radians(-theta_deg)
     c, s = math.cos(t), math.sin(t)
     return c, -s, s, c
+
+
+@njit(cache=True, nogil=True)
+def half_side(n, resolution):
+    """Half the ROI's side, n·r/2 (metres): a lookup beyond it on either axis is outside the ROI's square."""
+    return n * resolution / 2.0
 
 
 def lattice_offsets(n: int, resolution: float) -> np.ndarray:
@@ -48,7 +54,7 @@ def moving_states_numpy(moving, theta_deg: float, center_moving, n: int, resolut
     dy = r10 * kx + r11 * ky
     col = np.floor(((center_moving[0] + dx) - moving.origin[0]) / moving.resolution)
     row = np.floor(((center_moving[1] + dy) - moving.origin[1]) / moving.resolution)
-    half = n * resolution / 2.0
+    half = half_side(n, resolution)
     inside = ((col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
               & (np.abs(dx) < half) & (np.abs(dy) < half))
     out = np.full((n, n), UNKNOWN_S, np.uint8)
@@ -56,20 +62,47 @@ def moving_states_numpy(moving, theta_deg: float, center_moving, n: int, resolut
     return out
 
 
+def axis_floor(center: float, origin: float, resolution: float, n: int, k: int) -> np.ndarray:
+    """(2k+1, n) float table: the (unclipped) reference cell index lattice line j reads along one axis at
+    each translation −k..k cells, ``floor(((c + a·r) + off_j − origin) / r)`` — the one computation of
+    the reference's lookups."""
+    off = lattice_offsets(n, resolution)
+    tab = np.empty((2 * k + 1, n), np.float64)
+    for a in range(-k, k + 1):
+        c = center + a * resolution if a else center
+        tab[a + k] = np.floor(((c + off) - origin) / resolution)
+    return tab
+
+
 def ref_axes_numpy(ref, center_ref, n: int, k: int) -> tuple[np.ndarray, np.ndarray]:
     """``(cols, rows)``: (2k+1, n) int64 tables of the reference cell read by each lattice column (row)
     at each translation −k..k (−1 outside the grid) — the specification of the reference ROI."""
-    r = ref.resolution
-    off = lattice_offsets(n, r)
     out = []
     for axis, size in ((0, ref.width), (1, ref.height)):
-        tab = np.empty((2 * k + 1, n), np.int64)
-        for a in range(-k, k + 1):
-            c = center_ref[axis] + a * r if a else center_ref[axis]
-            v = np.floor(((c + off) - ref.origin[axis]) / r)
-            tab[a + k] = np.where((v >= 0) & (v < size), v, -1)
-        out.append(tab)
+        v = axis_floor(center_ref[axis], ref.origin[axis], ref.resolution, n, k)
+        out.append(np.where((v >= 0) & (v < size), v, -1).astype(np.int64))
     return out[0], out[1]
+
+
+def roi_cells(roi_m: float, resolution: float) -> int:
+    """Side of the square region of interest in cells (at least 1)."""
+    return max(1, int(round(roi_m / resolution)))
+
+
+def extract_roi(grid, center, n: int) -> np.ndarray:
+    """The (n, n) states of ``grid`` on the ROI lattice of its own cell size centred on ``center`` (the
+    reference ROI; unknown outside the grid)."""
+    cols, rows = ref_axes_numpy(grid, (float(center[0]), float(center[1])), n, 0)
+    r, c = rows[0][:, None], cols[0][None, :]
+    return np.where((r >= 0) & (c >= 0), grid.states[np.maximum(r, 0), np.maximum(c, 0)], UNKNOWN_S).astype(np.uint8)
+
+
+def rotated_roi(moving, theta_deg: float, center_moving, center_ref, n: int, resolution: float) -> np.ndarray:
+    """The moving map's region of interest rotated by θ, on the reference ROI lattice: the square of side
+    ``n · resolution`` about ``center_moving`` in the moving map's own frame (the thesis's roi_2); after
+    rotation its corners leave the reference square and the reference square's corners are unknown
+    (:func:`moving_states_numpy`; ``center_ref`` does not enter: the lattice is relative)."""
+    return moving_states_numpy(moving, theta_deg, center_moving, n, resolution)
 
 
 @njit(cache=True, nogil=True)
@@ -93,7 +126,7 @@ def state_at(states, res_m, ox, oy, cx, cy, m, half, res, r00, r01, r10, r11, i,
 def moving_states(states, res_m, ox, oy, cx, cy, n, res, r00, r01, r10, r11, out):
     """Compiled :func:`moving_states_numpy` into ``out`` (n·n uint8, row-major); returns the number of
     occupied and of free lattice points."""
-    half = n * res / 2.0
+    half = half_side(n, res)
     m = (n - 1) / 2.0
     n_occ = 0
     n_free = 0

@@ -175,24 +175,40 @@ def moving_bound(t, pts, box):
     r_hi, c_hi = r_lo + t.ref_sat.shape[0] - 2, c_lo + t.ref_sat.shape[1] - 2
     agr = 0
     dis = 0
+    h, w = t.ref.shape
     for x in range(pts.size):
         p = pts[x]
         i = p // n
         j = p - i * n
-        ra, rb = t.rows[b0, i], t.rows[b1, i]
-        ca, cb = t.cols[a0, j], t.cols[a1, j]
-        if (ra < 0 and rb < 0) or (ca < 0 and cb < 0):
-            continue  # read nowhere in the box (a −1 at one end only: the part beyond that end is outside)
-        r0 = ra if ra >= 0 else r_lo
-        r1 = rb if rb >= 0 else r_hi
-        c0 = ca if ca >= 0 else c_lo
-        c1 = cb if cb >= 0 else c_hi
+        r0, r1, known_r = _span(t.rows, b0, b1, i, r_lo, r_hi, h, t.axes_r[1])
+        if r0 < 0:
+            continue  # read nowhere in the box
+        c0, c1, known_c = _span(t.cols, a0, a1, j, c_lo, c_hi, w, t.axes_c[1])
+        if c0 < 0:
+            continue
         both = sat_sum(t.ref_sat, r0 - r_lo, r1 - r_lo, c0 - c_lo, c1 - c_lo)
         if (both >> 32) > 0:
             agr += 1
-        elif ra >= 0 and rb >= 0 and ca >= 0 and cb >= 0 and (both & 0xFFFFFFFF) == (r1 - r0 + 1) * (c1 - c0 + 1):
+        elif known_r and known_c and (both & 0xFFFFFFFF) == (r1 - r0 + 1) * (c1 - c0 + 1):
             dis += 1
     return agr, dis
+
+
+@njit(cache=True, nogil=True)
+def _span(tab, lo, hi, i, first, last, size, dev):
+    """The reference rows (columns) lattice line ``i`` reads at the translations lo..hi — tab[lo, i] ..
+    tab[hi, i], the tables being non-decreasing (Lemma 1), −1 outside the grid — as (start, end, whether
+    every translation reads inside the grid); (−1, −1, False) when none does. An end outside is replaced
+    by the first (last) readable row. Both ends outside: on one side of the grid (read nowhere), or on
+    opposite sides of a grid no taller than the box (every row read)."""
+    x0, x1 = tab[lo, i], tab[hi, i]
+    if x0 >= 0 or x1 >= 0:
+        return (x0 if x0 >= 0 else first), (x1 if x1 >= 0 else last), x0 >= 0 and x1 >= 0
+    if hi - lo + 2 * dev > size:  # the box can span the grid: from below it to above it
+        for x in range(lo + 1, hi):
+            if tab[x, i] >= 0:
+                return first, last, False
+    return -1, -1, False
 
 
 @njit(cache=True, nogil=True)
@@ -247,7 +263,8 @@ def region_upper(t, angles, asum, lo, hi, box, pts, stop):
 def bound_of(searcher, angles, lo: int, hi: int, box, side: str = "both") -> tuple[int, int, float]:
     """(agr_hi, dis_lo, value_hi) over the region angles[lo..hi] × ``box`` of ``searcher``'s problem
     (translation indices 0..2K; cells = index − K): ``side`` "reference" (:func:`region_bound`), "moving"
-    (:func:`moving_bound`: one angle, a window) or "both" (as the branch and bound combines them)."""
+    (:func:`moving_bound`: one angle, a window) or "both" (as the branch and bound combines them: the
+    moving side too at one angle of a windowed problem)."""
     t = searcher.p.tables
     angles = np.asarray(angles, np.float64)
     searcher.select(angles)
@@ -255,9 +272,10 @@ def bound_of(searcher, angles, lo: int, hi: int, box, side: str = "both") -> tup
     box = np.asarray(box, np.int64)
     sx_lo, sx_hi, sy_lo, sy_hi = sum_ranges(t, asum, lo, hi, box)
     agr, dis = 1 << 40, 0
-    if side in ("moving", "both"):
-        if t.k == 0 or lo != hi:
-            raise ValueError("the moving side bounds one angle of a windowed problem")
+    one_angle = t.k > 0 and lo == hi
+    if side == "moving" and not one_angle:
+        raise ValueError("the moving side bounds one angle of a windowed problem")
+    if side == "moving" or (side == "both" and one_angle):
         agr, dis = moving_bound(t, searcher.points_at(angles, lo), box)
     if side in ("reference", "both"):
         half_rad = math.radians((angles[hi] - angles[lo]) / 2.0)

@@ -34,7 +34,7 @@ def rotation_entries(theta_deg: float) -> tuple[float, float, float, float]:
     return c, -s, s, c
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def half_side(n, resolution):
     """Half the ROI's side, n·r/2 (metres): a lookup beyond it on either axis is outside the ROI's square."""
     return n * resolution / 2.0

@@ -158,7 +158,8 @@ def upper_of(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, n_cells):
     whose count tables lie in [sx_lo, sx_hi] (per translation) and [sy_lo, sy_hi] (per angle): occupied
     points for NCC, free points for Birk–Carpin (ff ≤ both) (Lemma 4). With a support floor F, ω̃ ≤
     agr_hi / max(agr_hi + dis_lo, F) (increasing in agr_hi); the floor only lowers values to 0, and
-    every bound here is ≥ 0, so the other bounds stand as they are."""
+    every bound here is ≥ 0, so the other bounds stand as they are (Lemma 4a). The bound only falls when
+    agr_hi falls or dis_lo rises (Lemma 4b)."""
     if code == SIMILARITY:
         if agr_hi <= 0:
             return 0.0
@@ -192,7 +193,7 @@ def uppers(code, floor, agr_hi, dis_lo, sx_lo, sx_hi, sy, n_cells):
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def angle_sum(sums, n_occ, n_free):
     """The per-angle count a measure with count tables ``sums`` reads: the moving ROI's occupied points
     (NCC) or free points (Birk–Carpin)."""

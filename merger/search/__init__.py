@@ -25,10 +25,9 @@ from collections.abc import Callable
 
 from ..caches import clear_all
 from .engine import exact_runner_up, fast_search, reference_search, spec_search
-from .guard import beyond_window, reference_beyond
+from .guard import BeyondQuery, beyond_window, reference_beyond
 from .prepared import translation_offsets
 from .problem import (
-    BEYOND_GUARDS,
     COARSE_STEP_DEG,
     FINE_HALF_WIDTH_DEG,
     FINE_STEP_DEG,
@@ -37,7 +36,6 @@ from .problem import (
     ROI_MIN_SUPPORT,
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
-    BeyondQuery,
     RotationProblem,
     angle_diff_deg,
     check_roi_cells,
@@ -49,9 +47,6 @@ from .problem import (
 )
 from .refine import refine_alignment
 from .searcher import searcher_for
-
-# the guards an Alignment's BeyondQuery names (Alignment.beyond runs one on first access)
-BEYOND_GUARDS.update(fast=beyond_window, reference=reference_beyond)
 
 SearchMethod = Callable[[RotationProblem], Alignment]
 SEARCH_METHODS: dict[str, SearchMethod] = {
@@ -82,7 +77,7 @@ def search(problem: RotationProblem, method: str = "reference") -> Alignment:
 
 __all__ = [
     "COARSE_STEP_DEG", "FINE_HALF_WIDTH_DEG", "FINE_STEP_DEG", "MAX_ROI_CELLS", "MAX_WINDOW_FRACTION",
-    "BEYOND_GUARDS", "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery",
+    "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery",
     "RotationProblem",
     "angle_diff_deg", "beyond_window", "check_roi_cells", "check_window", "clear_all", "exact_runner_up",
     "fast_search", "fine_angles",

@@ -70,6 +70,7 @@ def branch_and_bound(t, w, q, inc, env):
     (m, 6) and their bounds (m): with ``q.keep`` ≥ 0 the regions dropped and elements evaluated whose
     bound was at least the incumbent − keep at that moment, Lemma 5b)."""
     hk, hb, hn, size = _first_regions(t, q)
+    reg = np.empty(6, np.int64)  # the region visited
     child = np.empty((4, 6), np.int64)
     pts = [np.empty(0, np.int32) for _ in range(q.angles.size)]  # per angle, computed on first use
     have = np.zeros(q.angles.size, np.bool_)
@@ -79,7 +80,7 @@ def branch_and_bound(t, w, q, inc, env):
     while size > 0:
         if q.budget > 0 and n_bounds >= q.budget:
             return n_bounds, n_exact, False, fr_nodes[:n_fr], fr_vals[:n_fr]
-        size, bound, reg, depth = _pop(hk, hb, hn, size)
+        size, bound, depth = _pop(hk, hb, hn, size, reg)
         kp, ks = _first_keys(t, q, reg)
         if kp < 0:
             continue  # nothing allowed in it
@@ -117,8 +118,9 @@ def branch_and_bound(t, w, q, inc, env):
 
 @njit(cache=True, nogil=True)
 def _first_regions(t, q):
-    """The heap of the first regions: given with their bounds (the polar bounds, Lemma 6, or a frontier,
-    Lemma 5b), else sectors of ``q.sector0`` angles × the whole window, unbounded."""
+    """The heap of the first regions: given with their bounds (Lemma 5c: the polar bounds of Lemma 6, a
+    frontier of Lemma 5b, an envelope, the guard's unbounded quadrants), else sectors of ``q.sector0``
+    angles × the whole window, unbounded."""
     cap = max(4096, 2 * q.init_nodes.shape[0])
     hk = np.empty(cap, np.float64)  # the visit key
     hb = np.empty(cap, np.float64)  # the region's own bound
@@ -135,40 +137,42 @@ def _first_regions(t, q):
     return hk, hb, hn, size
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _first_keys(t, q, reg):
     """The region's smallest tie keys among its allowed elements (mode 0: (rank, angle); mode 1: (angle,
     rank)), (−1, −1) when it allows none."""
+    amask, tmask, rank, side = q.amask, q.tmask, q.rank, t.side  # locals: read in the loops
     amin = -1
     for x in range(reg[0], reg[1] + 1):
-        if q.amask[x]:
+        if amask[x]:
             amin = x
             break
     rmin = NO_RANK
     for b in range(reg[4], reg[5] + 1):
         for a in range(reg[2], reg[3] + 1):
-            i = b * t.side + a
-            if q.tmask[i] and q.rank[i] < rmin:
-                rmin = q.rank[i]
+            i = b * side + a
+            if tmask[i] and rank[i] < rmin:
+                rmin = rank[i]
     if amin < 0 or rmin == NO_RANK:
         return -1, -1
     return (rmin, amin) if q.mode == 0 else (amin, rmin)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _allowed(t, q, reg):
     """Whether the region holds an allowed angle and an allowed translation."""
+    amask, tmask, side = q.amask, q.tmask, t.side
     for x in range(reg[0], reg[1] + 1):
-        if q.amask[x]:
+        if amask[x]:
             for b in range(reg[4], reg[5] + 1):
                 for a in range(reg[2], reg[3] + 1):
-                    if q.tmask[b * t.side + a]:
+                    if tmask[b * side + a]:
                         return True
             return False
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _split(reg, child):
     """The region's children into ``child``: its angles halved, or (one angle) its box in quarters
     (one angle's moving side bounds its box tightly, Lemma 3b). Returns their number."""
@@ -217,7 +221,7 @@ def _evaluate(t, w, q, x, ai, bi):
     return agr, dis, ff, v
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _points(t, w, q, pts, have, x):
     """The moving ROI's occupied lattice points at angle index ``x``: given in the query, else computed
     on first use."""
@@ -231,7 +235,7 @@ def _points(t, w, q, pts, have, x):
     return pts[x]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _push(hk, hb, hn, size, key, bound, reg, depth):
     """A region onto the max-heap of visit keys (the arrays doubled when full)."""
     if size >= hk.size:
@@ -251,10 +255,11 @@ def _push(hk, hb, hn, size, key, bound, reg, depth):
     return hk, hb, hn, size + 1
 
 
-@njit(cache=True, nogil=True)
-def _pop(hk, hb, hn, size):
-    """The region of the highest visit key: (new size, its bound, its region (6), its depth)."""
-    bound, reg, depth = hb[0], hn[0, :6].copy(), hn[0, 6]
+@njit(cache=True, nogil=True, inline=True)
+def _pop(hk, hb, hn, size, reg):
+    """The region of the highest visit key into ``reg`` (6): (new size, its bound, its depth)."""
+    bound, depth = hb[0], hn[0, 6]
+    reg[:] = hn[0, :6]
     size -= 1
     _swap(hk, hb, hn, 0, size)
     k = 0
@@ -268,10 +273,10 @@ def _pop(hk, hb, hn, size):
             break
         _swap(hk, hb, hn, k, c)
         k = c
-    return size, bound, reg, depth
+    return size, bound, depth
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _swap(hk, hb, hn, i, j):
     hk[i], hk[j] = hk[j], hk[i]
     hb[i], hb[j] = hb[j], hb[i]
@@ -293,7 +298,7 @@ def _keep(fr_nodes, fr_vals, n_fr, reg, v):
     return fr_nodes, fr_vals, n_fr + 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _dropped(env, reg, v, inc0, keep, fr_nodes, fr_vals, n_fr):
     """A region dropped with bound ``v`` (below the incumbent ``inc0``): the envelope of its angles raised
     to ``v``, and the region kept in the frontier when ``v`` ≥ inc0 − ``keep`` (Lemma 5b)."""
@@ -304,7 +309,7 @@ def _dropped(env, reg, v, inc0, keep, fr_nodes, fr_vals, n_fr):
     return fr_nodes, fr_vals, n_fr
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline=True)
 def _before(v, p, s, iv, ip, is_):
     """Whether the key (v, −p, −s) comes before (is greater than) (iv, −ip, −is)."""
     if v != iv:

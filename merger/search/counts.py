@@ -8,7 +8,8 @@ Compiled with ``@njit(cache=True, nogil=True)`` (no fastmath) on the arrays of
   :func:`moving_points_all` at every angle of an array at once (kept per moving map by the searcher).
 * :func:`exact_counts` / :func:`exact_counts_sparse` — (agr̃, dis[, ff]) at one translation: the moving
   ROI's occupied points read the reference through the tables; the reference's occupied cells read the
-  moving ROI through the tables' preimages (Lemma 2).
+  moving ROI through the tables' preimages (Lemma 2); :func:`values_at` — the measure's values at many
+  translations of one angle.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from ..grid import FREE_S, OCCUPIED_S
 from ..jit import njit
 from ..lattice import half_side, moving_states, state_at
+from ..measures import angle_sum, value_of
 
 HALF_DIAGONAL = 0.7072  # a cell's half-diagonal √½ (cells), rounded up: how far a rotated cell reaches
 
@@ -49,11 +51,14 @@ def sparse_moving(t, r, mark, gen, pocc):
     m = (n - 1) / 2.0
     half = half_side(n, t.res)
     reach = HALF_DIAGONAL * t.res_m / t.res + 1e-6
+    r00, r01, r10, r11 = r[0], r[1], r[2], r[3]
+    ms, res_m, mox, moy, mcx, mcy, res = t.mstates, t.res_m, t.mox, t.moy, t.mcx, t.mcy, t.res
+    occ_x, occ_y = t.occ_x, t.occ_y
     count = 0
-    for q in range(t.occ_x.size):
+    for q in range(occ_x.size):
         # R(θ) is the transpose of R(−θ)
-        jc = (r[0] * t.occ_x[q] + r[2] * t.occ_y[q]) / t.res + m
-        ic = (r[1] * t.occ_x[q] + r[3] * t.occ_y[q]) / t.res + m
+        jc = (r00 * occ_x[q] + r10 * occ_y[q]) / res + m
+        ic = (r01 * occ_x[q] + r11 * occ_y[q]) / res + m
         i0 = max(int(math.ceil(ic - reach)), 0)
         i1 = min(int(math.floor(ic + reach)), n - 1)
         j0 = max(int(math.ceil(jc - reach)), 0)
@@ -64,15 +69,10 @@ def sparse_moving(t, r, mark, gen, pocc):
                 if mark[p] == gen:
                     continue
                 mark[p] = gen
-                if _moving_state(t, r, m, half, i, j) == OCCUPIED_S:
+                if state_at(ms, res_m, mox, moy, mcx, mcy, m, half, res, r00, r01, r10, r11, i, j) == OCCUPIED_S:
                     pocc[count] = p
                     count += 1
     return count
-
-
-@njit(cache=True, nogil=True)
-def _moving_state(t, r, m, half, i, j):
-    return state_at(t.mstates, t.res_m, t.mox, t.moy, t.mcx, t.mcy, m, half, t.res, r[0], r[1], r[2], r[3], i, j)
 
 
 @njit(cache=True, nogil=True)
@@ -109,17 +109,17 @@ def append(buf, used, src, c):
 @njit(cache=True, nogil=True)
 def _moving_occupied_term(t, pocc, n_occ, ai, bi):
     """(agr, dis from the moving side): each occupied lattice point against the reference cell it reads."""
-    n = t.n
+    n, rows, cols, ref = t.n, t.rows, t.cols, t.ref  # locals: fields of t are read again in every iteration
     agr = 0
     dis = 0
     for x in range(n_occ):
         p = pocc[x]
         i = p // n
         j = p - i * n
-        r = t.rows[bi, i]
-        c = t.cols[ai, j]
+        r = rows[bi, i]
+        c = cols[ai, j]
         if r >= 0 and c >= 0:
-            s = t.ref[r, c]
+            s = ref[r, c]
             if s == OCCUPIED_S:
                 agr += 1
             elif s == FREE_S:
@@ -133,12 +133,15 @@ def exact_counts_sparse(t, pocc, n_occ, ai, bi, r):
     agr, dis = _moving_occupied_term(t, pocc, n_occ, ai, bi)
     m = (t.n - 1) / 2.0
     half = half_side(t.n, t.res)
-    for q in range(t.qr.size):
-        rr = t.qr[q] - t.rlo
-        cc = t.qc[q] - t.clo
-        for i in range(t.ilo[bi, rr], t.ihi[bi, rr]):
-            for j in range(t.jlo[ai, cc], t.jhi[ai, cc]):
-                if _moving_state(t, r, m, half, i, j) == FREE_S:
+    r00, r01, r10, r11 = r[0], r[1], r[2], r[3]
+    ms, res_m, mox, moy, mcx, mcy, res = t.mstates, t.res_m, t.mox, t.moy, t.mcx, t.mcy, t.res
+    qr, qc, ilo, ihi, jlo, jhi, rlo, clo = t.qr, t.qc, t.ilo, t.ihi, t.jlo, t.jhi, t.rlo, t.clo
+    for q in range(qr.size):
+        rr = qr[q] - rlo
+        cc = qc[q] - clo
+        for i in range(ilo[bi, rr], ihi[bi, rr]):
+            for j in range(jlo[ai, cc], jhi[ai, cc]):
+                if state_at(ms, res_m, mox, moy, mcx, mcy, m, half, res, r00, r01, r10, r11, i, j) == FREE_S:
                     dis += 1
     return agr, dis
 
@@ -148,21 +151,38 @@ def exact_counts(t, dense, pocc, n_occ, ai, bi, need_ff):
     """(agr, dis, ff) of the moving ROI ``dense`` against the reference ROI at translation (ai, bi)."""
     n = t.n
     agr, dis = _moving_occupied_term(t, pocc, n_occ, ai, bi)
-    for q in range(t.qr.size):  # reference occupied: the lattice points that read it, against moving free
-        rr = t.qr[q] - t.rlo
-        cc = t.qc[q] - t.clo
-        for i in range(t.ilo[bi, rr], t.ihi[bi, rr]):
-            for j in range(t.jlo[ai, cc], t.jhi[ai, cc]):
+    qr, qc, ilo, ihi, jlo, jhi, rlo, clo = t.qr, t.qc, t.ilo, t.ihi, t.jlo, t.jhi, t.rlo, t.clo
+    for q in range(qr.size):  # reference occupied: the lattice points that read it, against moving free
+        rr = qr[q] - rlo
+        cc = qc[q] - clo
+        for i in range(ilo[bi, rr], ihi[bi, rr]):
+            for j in range(jlo[ai, cc], jhi[ai, cc]):
                 if dense[i * n + j] == FREE_S:
                     dis += 1
     ff = 0
     if need_ff:
+        rows, cols, ref = t.rows, t.cols, t.ref
         for i in range(n):
-            r = t.rows[bi, i]
+            r = rows[bi, i]
             if r < 0:
                 continue
             for j in range(n):
-                c = t.cols[ai, j]
-                if c >= 0 and t.ref[r, c] == FREE_S and dense[i * n + j] == FREE_S:
+                c = cols[ai, j]
+                if c >= 0 and ref[r, c] == FREE_S and dense[i * n + j] == FREE_S:
                     ff += 1
     return agr, dis, ff
+
+
+@njit(cache=True, nogil=True)
+def values_at(t, dense, pocc, n_occ, n_free, ai, bi, r, out):
+    """The exact values of the moving ROI under ``r`` (its occupied points ``pocc``; ``dense`` when the
+    measure counts free/free) at the translation indices (ai[x], bi[x]) into ``out``."""
+    tsum, side, code, floor, nn = t.tsum, t.side, t.code, t.floor, t.n * t.n
+    sy = angle_sum(t.sums, n_occ, n_free)
+    for x in range(ai.size):
+        if t.need_ff:
+            agr, dis, ff = exact_counts(t, dense, pocc, n_occ, ai[x], bi[x], True)
+        else:
+            agr, dis = exact_counts_sparse(t, pocc, n_occ, ai[x], bi[x], r)
+            ff = 0
+        out[x] = value_of(code, floor, agr, dis, ff, tsum[bi[x] * side + ai[x]], sy, nn)

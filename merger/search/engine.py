@@ -22,11 +22,11 @@ import numpy as np
 
 from .. import caches
 from ..measures import measure_fn
+from .guard import BeyondQuery, reference_beyond
 from .prepared import translation_offsets
 from .problem import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
-    BeyondQuery,
     angle_diff_deg,
     fine_angles,
     floored,
@@ -65,11 +65,11 @@ def fast_search(problem) -> Alignment:
     th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
     angles, fine_vals, kf, value, counts = fine_answer(s, th_c, tc)
     theta = wrap_deg(float(angles[kf]))
-    profile = np.minimum(env, max(float(inc[0]), 0.0)) if problem.measure == "ncc" else env
-    # the runner-up from the envelope: an upper bound of the reference's (never above the best coarse
-    # value); exact_runner_up computes it exactly, at the cost of a search where few regions can be dropped
-    return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, profile,
-                     runner_up(profile, theta), window_m=problem.window_m,
+    # the profile: an upper envelope of the reference's, never above the best coarse value (Lemma 5), and
+    # the runner-up read off it; exact_runner_up computes it exactly, at the cost of a search where few
+    # regions can be dropped
+    return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, env,
+                     runner_up(env, theta), window_m=problem.window_m,
                      translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_vals),
                      beyond_query=BeyondQuery(problem, float(inc[0]), (th_c, tc)),
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
@@ -83,7 +83,7 @@ def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budge
     regions bounded below it are dropped at once. With a ``budget`` of bounded regions the answer is
     the best exact value found within it (exact when the search completed; a real placement always).
     ``envelope``: per coarse angle an upper bound of its values over the window (the fast search's
-    profile, Lemma 5): the search starts from one region per angle with that bound, so angles whose
+    profile, Lemma 5): the search starts from one region per angle with that bound (Lemma 5c), so angles whose
     bound is below ``floor`` are never searched. Better, when the fast search of this very problem
     object ran and ``floor`` is within ``FRONTIER_KEEP`` of its best coarse value: the search starts from
     that search's frontier — the regions it dropped and the elements it evaluated with a bound at least
@@ -138,7 +138,7 @@ def reference_search(problem) -> Alignment:
         table[:, th] = s.values(float(th), ts)
     return _exhaustive(problem, "reference", table, ts, lambda a, t: s.values(a, [t])[0],
                        lambda a, t: s.exact(a, *t),
-                       lambda best, answer: BeyondQuery(problem, best, answer, "reference"))
+                       lambda best, answer: BeyondQuery(problem, best, answer, reference_beyond))
 
 
 def spec_search(problem) -> Alignment:

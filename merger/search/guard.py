@@ -4,13 +4,15 @@ A center trusted to ±W may be off by more. The guard looks at the coarse alignm
 the window and ``BEYOND_FACTOR`` × it (at most a quarter of the ROI side) for one that scores above the
 answer's best coarse value and lies apart from the answer (docs/design/search.md §5): by the branch and
 bound (:func:`beyond_window`, within a budget) or exhaustively (:func:`reference_beyond`, the yardstick).
-An :class:`merger.search.problem.Alignment` asks it lazily through its ``beyond_query``.
+An :class:`merger.search.problem.Alignment` asks it lazily through its ``beyond_query``, a
+:class:`BeyondQuery` holding the question and the guard that answers it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -113,3 +115,24 @@ def reference_beyond(problem, best_value: float, answer):
             if v > best_value and (out is None or v > out[2]) and _apart((th, t), answer):
                 out = (float(th), big.offset_m(*t), float(v))
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class BeyondQuery:
+    """The guard beyond the window, asked but not yet answered — a plain value.
+
+    Is there a coarse alignment outside the problem's translation window (within the guard's wider
+    ring) that scores above ``best_value`` and lies apart from the grid ``answer`` = (coarse θ°, (a, b)
+    cells)? ``guard`` answers it: :func:`beyond_window` (the branch and bound) or :func:`reference_beyond`
+    (exhaustive), or any function with their signature.
+    """
+
+    problem: object
+    best_value: float
+    answer: tuple
+    guard: Callable = beyond_window
+
+    def answer_now(self) -> tuple[float, tuple[float, float], float] | None:
+        """Run the guard: ``(θ°, (tx, ty) m, coarse score)`` or None."""
+        b = self.guard(self.problem, self.best_value, self.answer)
+        return None if b is None else (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2]))

@@ -42,6 +42,7 @@ def polar_tables(t, ring_w, n_rings):
     u0 = (t.mcx - t.mox) * inv
     v0 = (t.mcy - t.moy) * inv
     lim = inner_limit(t.half)
+    cls_sat = t.cls_sat
     for ring in range(n_rings):
         ra = max(ring * ring_w - PAD, 0.0)
         rb = (ring + 1) * ring_w + PAD
@@ -63,7 +64,7 @@ def polar_tables(t, ring_w, n_rings):
             c1 = math.floor(u0 + x_hi * inv + PAD)
             r0 = math.floor(v0 + y_lo * inv - PAD)
             r1 = math.floor(v0 + y_hi * inv + PAD)
-            meets, inside, occ, free = box_classes(t.cls_sat, mh, mw, r0, r1, c0, c1)
+            meets, inside, occ, free = box_classes(cls_sat, mh, mw, r0, r1, c0, c1)
             if not meets:
                 continue  # outside the grid: unknown
             if occ > 0:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,32 +121,6 @@ def floored(sim: Similarity, floor: int) -> Similarity:
 
 
 @dataclass(frozen=True, eq=False)
-class BeyondQuery:
-    """The guard beyond the window, asked but not yet answered — a plain value.
-
-    Is there a coarse alignment outside the problem's translation window (within the guard's wider
-    ring) that scores above ``best_value`` and lies apart from the grid ``answer`` = (coarse θ°, (a, b)
-    cells)? ``guard`` names who answers it in :data:`BEYOND_GUARDS`: "fast" (the branch and bound,
-    :func:`merger.search.beyond_window`) or "reference" (exhaustive, :func:`merger.search.reference_beyond`).
-    """
-
-    problem: RotationProblem
-    best_value: float
-    answer: tuple
-    guard: str = "fast"
-
-    def answer_now(self) -> tuple[float, tuple[float, float], float] | None:
-        """Run the guard: ``(θ°, (tx, ty) m, coarse score)`` or None."""
-        b = BEYOND_GUARDS[self.guard](self.problem, self.best_value, self.answer)
-        return None if b is None else (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2]))
-
-
-# the guards a BeyondQuery names, registered by merger.search (its __init__) when the engine is loaded:
-# this module does not import the engine (the engine imports it)
-BEYOND_GUARDS: dict[str, Callable] = {}
-
-
-@dataclass(frozen=True, eq=False)
 class Alignment:
     """Result of a rotation search, with its evidence — a frozen value.
 
@@ -162,7 +135,7 @@ class Alignment:
         best coarse value) and the runner-up read off it (at least the reference's runner-up score,
         never above the best); :func:`merger.search.exact_runner_up` computes the exact one.
     beyond_query : the guard beyond the translation window, asked and not yet answered
-        (:class:`BeyondQuery`; None: no guard, e.g. the ``spec`` search).
+        (:class:`merger.search.guard.BeyondQuery`; None: no guard, e.g. the ``spec`` search).
 
     One piece of evidence is computed lazily, behind one property: :attr:`beyond` runs the guard of
     ``beyond_query`` once, on first access, under a lock (two threads may ask at once; the search behind
@@ -185,7 +158,7 @@ class Alignment:
     refined: bool = False
     grid_theta_deg: float | None = None
     grid_translation_m: tuple[float, float] | None = None
-    beyond_query: BeyondQuery | None = field(default=None, repr=False)
+    beyond_query: object | None = field(default=None, repr=False)  # a guard.BeyondQuery: answer_now()
     evidence: dict = field(default_factory=lambda: {"profile": "exact", "runner_up": "exact"})
 
     def __post_init__(self) -> None:

@@ -17,7 +17,7 @@ from .. import caches
 from ..lattice import rotation_entries
 from ..measures import Counts, uppers
 from .bnb import Query, Work, branch_and_bound
-from .counts import exact_counts, exact_counts_sparse, fill_moving, moving_points_all, sparse_moving
+from .counts import exact_counts, fill_moving, moving_points_all, sparse_moving, values_at
 from .polar import angle_bounds, polar_tables
 from .prepared import Prepared
 
@@ -175,20 +175,15 @@ class Searcher:
             p, w = self.p, self.work
             rot = np.array(rotation_entries(theta_deg))
             pocc = np.empty(p.n * p.n, np.int32)
+            dense = np.empty(p.n * p.n if p.measure.needs_free_agree else 0, np.uint8)
             if p.measure.needs_free_agree:  # free/free: the dense ROI
-                dense = np.empty(p.n * p.n, np.uint8)
                 no, nf = fill_moving(p.tables, rot, dense, pocc)
             else:
                 w.gen[0] += 1
                 no, nf = sparse_moving(p.tables, rot, w.mark, w.gen[0], pocc), 0
-            out = np.empty(len(ts))
-            for x, (a, b) in enumerate(ts):
-                if p.measure.needs_free_agree:
-                    agr, dis, ff = exact_counts(p.tables, dense, pocc, no, a + p.k, b + p.k, True)
-                else:
-                    agr, dis = exact_counts_sparse(p.tables, pocc, no, a + p.k, b + p.k, rot)
-                    ff = 0
-                out[x] = self._value(agr, dis, ff, a, b, no, nf)
+            idx = np.array(ts, np.int64).reshape(-1, 2) + p.k
+            out = np.empty(idx.shape[0])
+            values_at(p.tables, dense, pocc, no, nf, idx[:, 0].copy(), idx[:, 1].copy(), rot, out)
             return out
 
     def values_at_angles(self, angles, t) -> np.ndarray:

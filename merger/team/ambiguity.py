@@ -28,8 +28,10 @@ from ..search import (
     BeyondQuery,
     RotationProblem,
     angle_diff_deg,
+    beyond_window,
     exact_runner_up,
     fine_angles,
+    reference_beyond,
     refine_alignment,
     searcher_for,
     wrap_deg,
@@ -126,7 +128,7 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
         ru_deg, ru_score = al.runner_up
     else:  # the runner-up, looked for only where it could be a rival; exact unless the rivals are so many
         # and so close that RIVAL_BUDGET regions do not settle them (then the best found: a real placement)
-        # the fast search's profile bounds every angle's values (Lemma 5): the search starts from it
+        # the fast search's profile bounds every angle's values (Lemma 5): the search starts from it (Lemma 5c)
         env = al.profile if al.evidence.get("profile") == "upper_envelope" else None
         ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK,
                                            budget=RIVAL_BUDGET, envelope=env)
@@ -165,7 +167,7 @@ def _exact_rival(problem: RotationProblem, al: Alignment, ev, angles, th_c: floa
                     (al.theta_deg, al.score), window_m=al.window_m, translation_m=problem.offset_m(*tc),
                     cells=tc, fine=(np.asarray(angles, np.float64), vals),
                     beyond_query=BeyondQuery(problem, top_value, (int(round(th_c)) % 360, tc),
-                                             "reference" if al.method == "reference" else "fast"),
+                                             reference_beyond if al.method == "reference" else beyond_window),
                     evidence={"profile": al.evidence["profile"],  # the rival's runner-up is al itself
                               "runner_up": "exact"})
     return refine_alignment(problem, out) if problem.refine else out

@@ -145,3 +145,30 @@ def test_every_kernel_of_merger_and_circsim_goes_through_the_guarded_cache():
                     assert isinstance(value._cache, GuardedCache), f"{name}.{attr}"
                     assert value.targetoptions.get("nogil") and not value.targetoptions.get("fastmath"), attr
     assert found >= 30  # merger's search and evidence kernels, circsim's scan matcher
+
+
+DEPENDENT = """
+from merger.jit import njit
+from kdep import add
+
+@njit(cache=True, nogil=True)
+def twice(a):
+    return add(a, a)
+
+print(twice(3))
+"""
+
+
+def test_a_kernel_is_compiled_again_when_a_kernel_it_calls_changed_in_another_file(tmp_path):
+    """numba's cache checks only the kernel's own file, while a cached kernel holds the code of the
+    kernels it calls: after an edit of ``add`` in another file, ``twice`` loaded from the cache ran the
+    old ``add`` (found when a fixed bound in merger/search/bounds.py still answered wrongly through the
+    branch and bound of bnb.py)."""
+    (tmp_path / "kdep.py").write_text(KERNELS.split("@njit(cache=True, nogil=True)\ndef twice")[0])
+    (tmp_path / "kmod.py").write_text(DEPENDENT)
+    env = {"PYTHONPATH": f"{ROOT}{os.pathsep}{tmp_path}"}
+    assert run_module(tmp_path, env) == (0, "9\n", [])  # 3 + 2·3
+    assert run_module(tmp_path, env) == (0, "9\n", [])  # from the cache
+    src = (tmp_path / "kdep.py").read_text().replace("a + 2 * b", "a + 3 * b")
+    (tmp_path / "kdep.py").write_text(src)
+    assert run_module(tmp_path, env) == (0, "12\n", [])  # 3 + 3·3: compiled again, not the cached 9

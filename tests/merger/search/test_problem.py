@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from merger.measures import Counts
-from merger.search import BEYOND_GUARDS, Alignment, BeyondQuery
+from merger.search import Alignment, BeyondQuery
 
 
 def alignment(query=None):
@@ -34,7 +34,7 @@ def test_an_alignment_is_frozen_and_what_it_derives_follows_its_fields():
     assert al.runner_up == (190.0, 0.25) and al.translation_m == (0.5, -1.0) and not al.has_evidence
 
 
-def test_the_guard_runs_once_on_first_access_even_from_many_threads(monkeypatch):
+def test_the_guard_runs_once_on_first_access_even_from_many_threads():
     calls = []
     gate = threading.Event()
 
@@ -43,8 +43,7 @@ def test_the_guard_runs_once_on_first_access_even_from_many_threads(monkeypatch)
         calls.append(answer)
         return (30, (0.5, -0.25), 0.75)
 
-    monkeypatch.setitem(BEYOND_GUARDS, "counted", guard)
-    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), "counted"))
+    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), guard))
     assert calls == []  # nothing computed at construction
     out = []
     threads = [threading.Thread(target=lambda: out.append(al.beyond)) for _ in range(4)]
@@ -56,8 +55,7 @@ def test_the_guard_runs_once_on_first_access_even_from_many_threads(monkeypatch)
     assert calls == [(12.0, (0, 0))] and out == [(30.0, (0.5, -0.25), 0.75)] * 4
 
 
-def test_pickling_answers_the_guard_and_drops_the_question(monkeypatch):
-    monkeypatch.setitem(BEYOND_GUARDS, "fixed", lambda problem, best_value, answer: None)
-    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), "fixed"))
+def test_pickling_answers_the_guard_and_drops_the_question():
+    al = alignment(BeyondQuery(None, 0.5, (12.0, (0, 0)), lambda problem, best_value, answer: None))
     back = pickle.loads(pickle.dumps(al))
     assert back.beyond is None and back.beyond_query is None and back.theta_deg == al.theta_deg

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from merger.measures import Counts
-from merger.search import BEYOND_GUARDS, angle_diff_deg
+from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MapInput, MergeParams, _pair_key, compose, merge_team
 from merger.team.tree import PairResult, chain, merge_tree, relative, spanning_tree
@@ -269,7 +269,7 @@ def test_recording_of_a_tree_run_plots_one_series_per_tree_edge(tmp_path):
         assert any(x.startswith("accepted merge") for x in ev)
 
 
-def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses_the_assembly(views, monkeypatch):
+def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses_the_assembly(views):
     _, names, maps, _ = views
     params = MergeParams(roi_m=8.0, window_m=0.2)
     inputs = _inputs(names, maps, versions=[1, 1, 1])
@@ -278,8 +278,8 @@ def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses
     assert good.accepted and good.ambiguity == ""
     edge = good.chosen.steps[0][1]
     key = next(k for k, p in reuse.items() if p.alignment is edge)
-    monkeypatch.setitem(BEYOND_GUARDS, "found", lambda problem, best_value, answer: (10.0, (0.5, -0.4), 0.9))
-    query = dataclasses.replace(edge.beyond_query, guard="found")  # the guard answers: a better one beyond
+    # the guard answers: a better one beyond
+    query = dataclasses.replace(edge.beyond_query, guard=lambda problem, best_value, answer: (10.0, (0.5, -0.4), 0.9))
     reuse[key] = dataclasses.replace(reuse[key], alignment=dataclasses.replace(edge, beyond_query=query))
     res = merge_tree(inputs, params, reuse=reuse)
     assert not res.accepted and res.reason.startswith("beyond the window") and res.top.accepted

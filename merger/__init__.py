@@ -11,10 +11,10 @@ from __future__ import annotations
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
 from .search import ROI_MIN_SUPPORT, SEARCH_METHODS, Alignment, RotationProblem, register_method, search
-from .search.problem import DEFAULT_ROI_M, DEFAULT_WINDOW_M
+from .search.problem import DEFAULT_MEASURE, DEFAULT_ROI_M, DEFAULT_WINDOW_M
 from .team.online import MapMessage, TeamMerger
 from .team.orders import merge_orders, merge_team
-from .team.params import MapInput, MergeParams, OrderResult, TeamMergeResult
+from .team.params import DEFAULT_METHOD, DEFAULT_REFINE, MapInput, MergeParams, OrderResult, TeamMergeResult
 from .team.superpose import fuse, superpose
 from .team.verify import Verification, verify
 
@@ -28,9 +28,12 @@ __all__ = [
 
 
 def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = DEFAULT_ROI_M,
-          measure: str = "similarity", method: str = "fast", window_m: float = DEFAULT_WINDOW_M,
-          refine: bool = True, roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
+          measure: str = DEFAULT_MEASURE, method: str = DEFAULT_METHOD, window_m: float = DEFAULT_WINDOW_M,
+          refine: bool = DEFAULT_REFINE, roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
     """Find the rotation θ (and translation t) of ``moving`` about its center onto ``ref``.
+
+    Every default is a merge's (:class:`MergeParams` reads the same constants); each value is checked by its
+    setting's one rule when the :class:`RotationProblem` is built (``method`` by :func:`search`).
 
     Parameters
     ----------

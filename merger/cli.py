@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .algorithms import ALGORITHMS
+from .algorithms import DEFAULT as DEFAULT_ALGORITHM
 from .io.mapio import (
     CENTERS_FILE,
     MAX_MAP_CELLS,
@@ -45,6 +46,7 @@ from .search import MAX_ROI_CELLS, SEARCH_METHODS
 from .search.problem import check_roi as roi_rule
 from .search.problem import check_window
 from .team.orders import MapInput, MergeParams, merge_team
+from .team.params import RULES, VERIFICATIONS
 from .team.pool import threads
 from .team.verify import no_evidence
 from .transform import resample, rotation
@@ -125,6 +127,19 @@ def check_roi(roi_m: float, resolution: float, path) -> None:
         raise UsageError(str(e)) from None
 
 
+# The merge options: MergeParams's setting -> (option, argparse dest). Their defaults are MergeParams's and
+# their values are checked by each setting's one rule (merger.team.params.RULES), named by the option.
+OPTIONS = {"roi_m": ("--roi", "roi"), "measure": ("--measure", "measure"), "method": ("--method", "method"),
+           "window_m": ("--window", "window"), "refine": ("--no-refine", "refine"),
+           "refine_whole": ("--no-refine-whole", "refine_whole"),
+           "combine_orders": ("--no-combine-orders", "combine_orders"), "nu_min": ("--nu-min", "nu_min"),
+           "min_support": ("--min-support", "min_support"), "verification": ("--verification", "verification"),
+           "tolerance_m": ("--tolerance", "tolerance"), "contrast_min": ("--contrast-min", "contrast_min"),
+           "roi_min_support": ("--roi-min-support", "roi_min_support")}
+# --verification: every whole-map rule (roi_score, the thesis's cross-correlation rule, has no --score-min)
+CLI_VERIFICATIONS = tuple(v for v in VERIFICATIONS if v != "roi_score")
+
+
 def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> None:
     """The options of a merge; ``orders``: also those about merge orders (not for ``align``: one pair)."""
     d = MergeParams()
@@ -141,33 +156,36 @@ def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> Non
                    help=f"the centers are trusted to ±M metres on each axis: the search covers every translation "
                         f"within it jointly with the rotation (default {d.window_m}; 0 = rotation only, the "
                         f"thesis's search; at most a quarter of --roi)")
-    p.add_argument("--no-refine", dest="refine", action="store_false",
+    p.add_argument("--no-refine", dest="refine", action="store_false", default=d.refine,
                    help="report the search grid's answer (θ on the 0.1° grid, t in whole cells) without the "
                         "sub-cell refinement")
-    p.add_argument("--no-refine-whole", dest="refine_whole", action="store_false",
+    p.add_argument("--no-refine-whole", dest="refine_whole", action="store_false", default=d.refine_whole,
                    help="merge at the search's placement instead of its refinement on the whole maps (the "
                         "thesis; by default a placement the contrast rule accepted is refined within ±5° and "
                         "±1 m, at most twice --window, and the search's is reported beside it)")
     if orders:
-        p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false",
+        p.add_argument("--no-combine-orders", dest="combine_orders", action="store_false", default=d.combine_orders,
                        help="keep the highest-Σν order's own placement (the thesis's rule) instead of the "
                             "mean of the accepted orders that agree with it, verified")
     p.add_argument("--nu-min", type=float, default=d.nu_min,
-                   help=f"verification threshold in [0, 1] (default {d.nu_min})")
+                   help=f"verification threshold, {RULES['nu_min'].expected} (default {d.nu_min})")
     p.add_argument("--min-support", type=int, default=d.min_support,
-                   help=f"minimum agr̃+dis on whole maps, an integer >= 0 (default {d.min_support})")
-    p.add_argument("--verification", choices=("auto", "whole_map", "contrast"), default=d.verification,
+                   help=f"minimum agr̃+dis on whole maps, {RULES['min_support'].expected} (default {d.min_support})")
+    p.add_argument("--verification", choices=CLI_VERIFICATIONS, default=d.verification,
                    help="whole_map: whole-map ω̃ ≥ --nu-min (the thesis); contrast: for maps from independent runs "
                         "(real maps), the whole-map fit within --tolerance must stand --contrast-min times above "
                         "the best rival placement and peak within 4° of the answer; auto: accepted when either "
                         f"accepts (docs/merging-real-maps.md; default {d.verification})")
     p.add_argument("--tolerance", type=float, default=d.tolerance_m, metavar="M",
-                   help=f"contrast: walls this close count as agreeing, metres (default {d.tolerance_m})")
+                   help=f"contrast: walls this close count as agreeing, metres, {RULES['tolerance_m'].expected} "
+                        f"(default {d.tolerance_m})")
     p.add_argument("--contrast-min", type=float, default=d.contrast_min,
-                   help=f"contrast: the fit over the best rival's it needs (default {d.contrast_min})")
+                   help=f"contrast: the fit over the best rival's it needs, {RULES['contrast_min'].expected} "
+                        f"(default {d.contrast_min})")
     p.add_argument("--roi-min-support", type=int, default=d.roi_min_support, metavar="CELLS",
                    help=f"the search's support floor: placements whose ROI agr̃+dis is below it score 0, so no "
-                        f"answer rests on a handful of cells; an integer >= 0 (default {d.roi_min_support}; 0: "
+                        f"answer rests on a handful of cells; {RULES['roi_min_support'].expected} (default "
+                        f"{d.roi_min_support}; 0: "
                         f"the thesis's measure)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
 
@@ -197,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="common center X,Y: once for all maps, or once per map in order")
     m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
     m.add_argument("--force", action="store_true", help="write the best hypothesis even if verification rejects it")
-    m.add_argument("--algorithm", choices=ALGORITHMS, default="thesis",
+    m.add_argument("--algorithm", choices=ALGORITHMS, default=DEFAULT_ALGORITHM,
                    help="thesis (default): the search about the common center, verified; features: ROS m-explore "
                         "map_merge's ORB/RANSAC pipeline; hough: Carpin's Hough-spectrum merging (both use no "
                         "center, and only --min-support of the options: merger.algorithms)")
@@ -223,28 +241,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def params_from(args) -> MergeParams:
-    """The merge parameters of the command line, every value checked first (one-line errors naming the
-    option); MergeParams's own ValueError is the last line of defence."""
-    try:  # the merger's rules for the ROI (with the inputs' limits) and the window, naming the options
-        roi_rule(args.roi, key="--roi", limits=True)
-        check_window(args.window, args.roi, "--window", "the --roi side")
+    """The merge parameters of the command line (:data:`OPTIONS`; a command without an option takes
+    MergeParams's default), every value checked first by its setting's one rule, named by its option (a
+    one-line error); MergeParams's own ValueError is the last line of defence."""
+    values = {name: getattr(args, dest) for name, (_, dest) in OPTIONS.items() if hasattr(args, dest)}
+    try:
+        roi_rule(args.roi, key="--roi", limits=True)  # the ROI's rule with the inputs' limits
+        for name, v in values.items():
+            RULES[name](v, OPTIONS[name][0])
+        check_window(args.window, args.roi, "--window", "the --roi side")  # the rule between the two
     except ValueError as e:
         raise UsageError(str(e)) from None
-    if not (math.isfinite(args.nu_min) and 0.0 <= args.nu_min <= 1.0):  # ν is ω̃ on the whole maps, in [0, 1]
-        raise UsageError(f"--nu-min: expected a number in [0, 1] (ν is ω̃ on the whole maps), got {args.nu_min:g}")
-    if args.min_support < 0:
-        raise UsageError(f"--min-support: expected an integer >= 0, got {args.min_support}")
-    for opt, v in (("--tolerance", args.tolerance), ("--contrast-min", args.contrast_min)):
-        if not (math.isfinite(v) and v > 0):
-            raise UsageError(f"{opt}: expected a number > 0, got {v:g}")
-    if args.roi_min_support < 0:
-        raise UsageError(f"--roi-min-support: expected an integer >= 0, got {args.roi_min_support}")
     try:
-        return MergeParams(roi_m=args.roi, measure=args.measure, method=args.method, nu_min=args.nu_min,
-                           min_support=args.min_support, window_m=args.window, refine=args.refine,
-                           combine_orders=getattr(args, "combine_orders", True), roi_min_support=args.roi_min_support,
-                           verification=args.verification, tolerance_m=args.tolerance,
-                           contrast_min=args.contrast_min, refine_whole=args.refine_whole)
+        return MergeParams(**values)
     except ValueError as e:
         raise UsageError(f"invalid merge parameters: {e}") from None
 

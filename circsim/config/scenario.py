@@ -30,6 +30,7 @@ from typing import Any
 import yaml
 
 from merger.algorithms import ALGORITHMS
+from merger.algorithms import DEFAULT as DEFAULT_ALGORITHM
 from merger.limits import (
     MAX_ROI_M,
     MAX_YAML_BYTES,
@@ -38,11 +39,9 @@ from merger.limits import (
     one_line,
     read_input,
 )
-from merger.measures import MEASURES
-from merger.search import SEARCH_METHODS
-from merger.search.problem import check_roi, check_window
-from merger.team.params import VERIFICATIONS, MergeParams
-from merger.team.track import RESEARCH_MODES
+from merger.search.problem import check_roi
+from merger.team.online import STRATEGIES, TeamMerger
+from merger.team.params import RULES, MergeParams
 
 from .geometry import check_geometry
 from .types import (
@@ -76,7 +75,6 @@ from .validate import (
     optional,
     optional_path,
     refused,
-    registered,
     ruled,
     section,
     seq,
@@ -131,8 +129,8 @@ class MergerSettings(MergeParams):
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
     min_maps: int | None = None
-    strategy: str = "auto"
-    algorithm: str = "thesis"
+    strategy: str = TeamMerger.strategy  # the online merger's default ("auto"; its dataclass field's)
+    algorithm: str = DEFAULT_ALGORITHM
     share_hypotheses: bool = False
 
     def params(self, keys=None, **given) -> MergeParams:
@@ -331,23 +329,16 @@ SLAM_SCHEMA = section(SlamConfig, {
     "linear_update_m": NON_NEGATIVE, "angular_update_rad": NON_NEGATIVE})
 NETWORK_SCHEMA = section(NetworkConfig, {"period_s": POSITIVE, "latency_s": NON_NEGATIVE, "jitter_s": NON_NEGATIVE,
                                    "loss": number(ge=0, lt=1)})
-# The merger section's keys are MergerSettings's fields (MergeParams's and the bench's own; the reference
-# lists them in this order): a MergeParams setting without a check here fails the import. roi_m and window_m are checked by the
-# merger's own rules (merger.search.problem: check_roi with the inputs' limits, check_window); window_m
-# against roi_m and the ROI in cells of slam.resolution_m below (_build), the rest by constructing the
-# settings (MergeParams's __post_init__, _merger_section).
+# The merger section's keys are MergerSettings's fields: MergeParams's, each checked by its one rule
+# (merger.team.params.RULES, the rule's words in the reference; roi_m the ROI's rule with the inputs' limits,
+# merger.limits), then the bench's own. window_m against roi_m is checked by constructing the settings
+# (MergeParams's __post_init__, _merger_section), the ROI in cells of slam.resolution_m below (_build).
 MERGER_CHECKS = {
+    **{name: ruled(rule) for name, rule in RULES.items()},
     "roi_m": ruled(lambda v, key: check_roi(v, key=key, limits=True), f"a number in (0, {MAX_ROI_M:g}]"),
-    "measure": choice(*MEASURES), "method": registered(SEARCH_METHODS, "search method"),
-    "verification": choice(*VERIFICATIONS), "nu_min": number(ge=0, le=1), "min_support": integer(ge=0),
-    "score_min": number(), "roi_min_support": integer(ge=0), "tolerance_m": POSITIVE, "contrast_min": POSITIVE,
-    "window_m": ruled(lambda v, key: check_window(v, None, key), "a number >= 0"), "refine": boolean,
-    "refine_whole": boolean, "ambiguity_margin": optional(number(ge=0, le=1)), "combine_orders": boolean,
     "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
-    "strategy": choice("auto", "orders", "tree"), "algorithm": choice(*ALGORITHMS), "share_hypotheses": boolean,
-    "research": choice(*RESEARCH_MODES), "research_period_s": number(gt=0, le=1e6),
-    "research_change": number(ge=0, le=1), "research_drop": number(ge=0, le=2)}
-if set(MERGER_CHECKS) != {f.name for f in fields(MergerSettings)}:  # a setting added to MergeParams needs its check
+    "strategy": choice(*STRATEGIES), "algorithm": choice(*ALGORITHMS), "share_hypotheses": boolean}
+if set(MERGER_CHECKS) != {f.name for f in fields(MergerSettings)}:  # a bench key added needs its check
     raise ImportError(f"merger section: checks for {sorted(MERGER_CHECKS)}, settings "
                       f"{sorted(f.name for f in fields(MergerSettings))}")
 MERGER_SCHEMA = section(MergerSettings, MERGER_CHECKS)

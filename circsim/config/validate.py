@@ -58,15 +58,18 @@ def refused(e: ValueError, path: str) -> Invalid:
     return Invalid(path, rest, sep="") if rest is not None else Invalid(path, str(e))
 
 
-def ruled(rule, expected: str):
+def ruled(rule, expected: str | None = None, why: str | None = None):
     """A check that is a merger rule ``rule(value, key) -> value`` (one rule per setting, its message
-    naming ``key``: the scenario's key path); ``expected`` is its words for the scenario reference."""
+    naming ``key``: the scenario's key path); ``expected`` and ``why`` are its words for the scenario
+    reference (by default the rule's own, ``rule.expected`` and ``rule.why``:
+    :class:`merger.team.params.Rule`)."""
     def check(v, path):
         try:
             return rule(v, path)
         except ValueError as e:
             raise refused(e, path) from None
-    check.expected = expected
+    check.expected = getattr(rule, "expected", "") if expected is None else expected
+    check.why = getattr(rule, "why", "") if why is None else why
     return check
 
 
@@ -107,17 +110,6 @@ def choice(*options):
             raise bad(path, exp, v)
         return v
     check.expected = exp
-    return check
-
-
-def registered(registry: dict, what: str):
-    """A name that must be a key of ``registry`` when the value is checked (so methods registered
-    after import, e.g. by a plug-in, are accepted)."""
-    def check(v, path):
-        if not isinstance(v, str) or v not in registry:
-            raise bad(path, f"a registered {what}: one of " + ", ".join(repr(o) for o in sorted(registry)), v)
-        return v
-    check.expected = f"a registered {what} (" + ", ".join(repr(o) for o in sorted(registry)) + ")"
     return check
 
 

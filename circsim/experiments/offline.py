@@ -49,6 +49,7 @@ import merger.caches
 from merger.grid import OccupancyGrid
 from merger.search import angle_diff_deg
 from merger.team.orders import MapInput, MergeParams, TeamMergeResult, merge_team
+from merger.team.params import DEFAULT_METHOD
 
 from ..config.scenario import Scenario
 from ..metrics import judge, judge_placement
@@ -86,7 +87,7 @@ class OfflineSettings:
     others: str = "lockstep"
     drift: str = "arc"
     ncc_score_min: float = NCC_SCORE_MIN
-    search_method: str | None = None  # None: "fast" when the merger has it, else "reference"
+    search_method: str | None = None  # None: the merge's default (default_search_method)
     full: bool = False
 
     def __post_init__(self) -> None:
@@ -103,8 +104,9 @@ class OfflineSettings:
 
 
 def default_search_method() -> str:
-    """``"fast"``: the exact branch and bound (the reference's answer)."""
-    return "fast"
+    """The merge's search method (MergeParams's default, ``"fast"``: the exact branch and bound, the
+    reference's answer)."""
+    return DEFAULT_METHOD
 
 
 # What an offline method takes from the scenario's merger settings (the search's ROI, window, refinement,

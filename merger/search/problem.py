@@ -31,6 +31,8 @@ MAX_ROI_CELLS = 4000  # ROI side in cells (100 m at 2.5 cm): the search's tables
 # (RotationProblem's, merger.team.params.MergeParams's and merger.align's defaults are these):
 DEFAULT_ROI_M = 8.0  # the ROI side, metres (the thesis's 8 m square)
 DEFAULT_WINDOW_M = 0.5  # the translation window, metres (centers trusted to ±0.5 m; 0: the thesis's rotation only)
+DEFAULT_MEASURE = "similarity"  # what the search maximizes (the thesis's ω̃, eq. 3.11)
+MAX_SUPPORT_FLOOR = 2 ** 40  # cells (check_floor): exact in the kernels' int64 and float64 (an ROI holds <= 1.6e7)
 
 COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
@@ -46,6 +48,15 @@ class RotationProblem:
     ``min_support`` (cells, ≥ 0): a placement whose ROI support agr̃ + dis is below it scores 0 (the
     support floor, :mod:`merger.search.measures`), so no optimum rests on a handful of cells; 0 keeps
     the measures as the thesis defines them. ``align`` and merge cycles use :data:`ROI_MIN_SUPPORT`.
+
+    ``roi_m``, ``measure`` and ``window_m`` default to the one default of each (:data:`DEFAULT_ROI_M`,
+    :data:`DEFAULT_MEASURE`, :data:`DEFAULT_WINDOW_M`), which ``merger.align`` and
+    :class:`merger.team.params.MergeParams` share. ``refine`` (False) and ``min_support`` (0) are not the
+    merger's settings but the search's question as the thesis states it: the grid answer of the plain
+    measure, the problem every exactness check compares (spec = reference = fast, ``agree_search``).
+    Sub-cell refinement and the support floor are policies of a merge, defaulted once in MergeParams
+    (``refine`` True, ``roi_min_support`` :data:`ROI_MIN_SUPPORT`); every merge builds its problem from
+    those (:func:`merger.team.orders.problem_for`, ``merger.align``) and passes both explicitly.
     """
 
     ref: OccupancyGrid
@@ -53,19 +64,16 @@ class RotationProblem:
     center_ref: tuple[float, float]
     center_moving: tuple[float, float]
     roi_m: float = DEFAULT_ROI_M
-    measure: str = "similarity"
+    measure: str = DEFAULT_MEASURE
     window_m: float = DEFAULT_WINDOW_M
-    refine: bool = False
-    min_support: int = 0
+    refine: bool = False  # the grid answer: see above
+    min_support: int = 0  # no floor: see above
 
     def __post_init__(self) -> None:
-        if self.measure not in MEASURES:
-            raise ValueError(f"unknown measure {self.measure!r}; expected one of {', '.join(MEASURES)}")
+        check_measure(self.measure)
         check_roi(self.roi_m, self.ref.resolution)
         check_window(self.window_m, self.roi_m)
-        if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
-                or not 0 <= self.min_support < 2 ** 40:
-            raise ValueError(f"min_support must be a whole number of cells >= 0, got {self.min_support!r}")
+        check_floor(self.min_support)
         for name, c in (("center_ref", self.center_ref), ("center_moving", self.center_moving)):
             if len(c) != 2 or not all(math.isfinite(float(v)) for v in c):
                 raise ValueError(f"{name} must be two finite numbers (x, y), got {c}")
@@ -327,6 +335,30 @@ def check_roi(roi_m, resolution: float | None = None, key: str = "roi_m", *, lim
                                     f"{lo * resolution:g} to {top:g} m: a smaller ROI, or a coarser map), got "
                                     f"{r:g} m ({n:.3g} cells)")
     return r
+
+
+MEASURE_EXPECTED = "one of " + ", ".join(map(repr, MEASURES))  # the measure rule's words
+
+
+def check_measure(measure, key: str = "measure") -> str:
+    """The measure's rule, the one check of every ``measure`` (RotationProblem, MergeParams, the scenario
+    loader; the command lines offer the same names): one of :data:`merger.measures.MEASURES`. Returns it;
+    SettingError naming ``key`` otherwise."""
+    if not isinstance(measure, str) or measure not in MEASURES:
+        raise SettingError(key, f" must be {MEASURE_EXPECTED}, got {measure!r}")
+    return measure
+
+
+FLOOR_EXPECTED = "a whole number of cells >= 0 (below 2^40)"  # the floor rule's words
+
+
+def check_floor(floor, key: str = "min_support") -> int:
+    """The support floor's rule, the one check of every floor (RotationProblem's ``min_support``,
+    MergeParams's ``roi_min_support``, the scenario loader and the command lines): a whole number of cells
+    in [0, :data:`MAX_SUPPORT_FLOOR`). Returns it as an int; SettingError naming ``key`` otherwise."""
+    if isinstance(floor, bool) or not isinstance(floor, (int, np.integer)) or not 0 <= floor < MAX_SUPPORT_FLOOR:
+        raise SettingError(key, f" must be {FLOOR_EXPECTED}, got {floor!r}")
+    return int(floor)
 
 
 def check_roi_cells(roi_m: float, resolution: float) -> None:

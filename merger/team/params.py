@@ -1,30 +1,50 @@
 """The team's parameter set and value types: :class:`MergeParams` (every setting of a merge cycle, with
-its one default and its one check), the maps to merge (:class:`MapInput`) and what a cycle answers
+its one default and its one rule), the maps to merge (:class:`MapInput`) and what a cycle answers
 (:class:`OrderResult`, :class:`TeamMergeResult`, placements as :data:`Placement`).
 
 Every strategy (:mod:`merger.team.orders`, :mod:`.tree`, :mod:`.follow`, :mod:`.shared`), the
 simulation bench (its scenarios' ``merger`` section is these settings plus the bench's own:
 :class:`circsim.config.scenario.MergerSettings`) and the command lines read them from here;
-:mod:`merger.team.orders` re-exports them. The search's own settings (``roi_m``, ``window_m``) take their
-default and their rule from :mod:`merger.search.problem` (``DEFAULT_ROI_M``, ``DEFAULT_WINDOW_M``,
-:func:`~merger.search.problem.check_roi`, :func:`~merger.search.problem.check_window`), which
-:class:`~merger.search.RotationProblem` shares.
+:mod:`merger.team.orders` re-exports them.
+
+One default per setting: MergeParams's field default (``merger.align`` reads the same constants). The
+search's own settings take theirs from :mod:`merger.search.problem` (``DEFAULT_ROI_M``,
+``DEFAULT_WINDOW_M``, ``DEFAULT_MEASURE``, ``ROI_MIN_SUPPORT``), which
+:class:`~merger.search.RotationProblem` shares; the verification's from :mod:`.evidence` and the
+tracking's from :mod:`.track`.
+
+One rule per setting: :data:`RULES`, a rule ``rule(value, key) -> value`` per MergeParams field holding
+its range and its words (``rule.expected``, ``rule.why``); a refusal is a
+:class:`~merger.search.problem.SettingError` ``key`` + " must be <expected>, got <value>", one line naming
+the setting as its caller knows it (``nu_min``, a scenario's ``merger.nu_min``, a command line's
+``--nu-min``). MergeParams, the scenario loader (:data:`circsim.config.scenario.MERGER_CHECKS`) and the
+command lines (:func:`merger.cli.params_from`) call them; the search's settings' rules are
+:mod:`merger.search.problem`'s (``check_roi``, ``check_window``, ``check_measure``, ``check_floor``), and
+the one rule between two settings, ``window_m`` ≤ ``roi_m`` / 4, is ``check_window`` with both.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from ..grid import OccupancyGrid
+from ..search import SEARCH_METHODS
 from ..search.problem import (
+    DEFAULT_MEASURE,
     DEFAULT_ROI_M,
     DEFAULT_WINDOW_M,
+    FLOOR_EXPECTED,
+    MEASURE_EXPECTED,
     ROI_MIN_SUPPORT,
     Alignment,
+    SettingError,
     angle_diff_deg,
+    check_floor,
+    check_measure,
     check_roi,
     check_window,
 )
@@ -35,6 +55,8 @@ from .verify import Verification
 
 VERIFICATIONS = ("auto", "whole_map", "roi_score", "contrast")
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
+DEFAULT_METHOD = "fast"  # the search method of a merge and of merger.align: the branch and bound (exact)
+DEFAULT_REFINE = True  # merges and merger.align refine below the search grid (RotationProblem's own: False)
 
 Placement = tuple[float, tuple[float, float]]  # (θ, t) onto a frame: x_f = c_f + t + R(θ)(x − c)
 ORIGIN: tuple[float, float] = (0.0, 0.0)
@@ -90,14 +112,14 @@ class MergeParams:
     """
 
     roi_m: float = DEFAULT_ROI_M
-    measure: str = "similarity"
-    method: str = "fast"
+    measure: str = DEFAULT_MEASURE
+    method: str = DEFAULT_METHOD
     verification: str = "auto"
     nu_min: float = 0.5
     min_support: int = 200
     score_min: float = 0.5
     window_m: float = DEFAULT_WINDOW_M
-    refine: bool = True
+    refine: bool = DEFAULT_REFINE
     ambiguity_margin: float | None = None
     combine_orders: bool = True
     roi_min_support: int = ROI_MIN_SUPPORT
@@ -118,34 +140,120 @@ class MergeParams:
         return AMBIGUITY_MARGIN if self.window_m > 0 else 0.0
 
     def __post_init__(self) -> None:
-        if self.verification not in VERIFICATIONS:
-            raise ValueError(f"verification must be one of {VERIFICATIONS}, got {self.verification!r}")
-        check_roi(self.roi_m)
-        for name in ("nu_min", "score_min"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and -1.0 <= v <= 1.0):
-                raise ValueError(f"{name} must be a finite number in [-1, 1], got {v!r}")
-        if isinstance(self.min_support, bool) or not isinstance(self.min_support, (int, np.integer)) \
-                or self.min_support < 0:
-            raise ValueError(f"min_support must be an integer >= 0, got {self.min_support!r}")
-        if isinstance(self.roi_min_support, bool) or not isinstance(self.roi_min_support, (int, np.integer)) \
-                or self.roi_min_support < 0:
-            raise ValueError(f"roi_min_support must be an integer >= 0, got {self.roi_min_support!r}")
-        check_window(self.window_m, self.roi_m)
-        for name, lo in (("tolerance_m", 0.0), ("contrast_min", 0.0)):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > lo):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        if self.research not in RESEARCH_MODES:
-            raise ValueError(f"research must be one of {RESEARCH_MODES}, got {self.research!r}")
-        for name, lo, hi in (("research_period_s", 0.0, 1e6), ("research_change", 0.0, 1.0),
-                             ("research_drop", 0.0, 2.0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
-                raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
-        m = self.ambiguity_margin
-        if m is not None and not (isinstance(m, (int, float)) and math.isfinite(m) and 0 <= m <= 1):
-            raise ValueError(f"ambiguity_margin must be a number in [0, 1] (or None), got {m!r}")
+        for name, rule in RULES.items():  # every setting's one rule, named by its field
+            rule(getattr(self, name), name)
+        check_window(self.window_m, self.roi_m)  # the one rule between two settings
+
+
+# --- the settings' rules ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Rule:
+    """One setting's rule: ``rule(value, key)`` returns the value (a number as a float, a count as an int)
+    when ``accepts(value)``, else raises :class:`~merger.search.problem.SettingError` ``key`` + " must be
+    <expected>, got <value>". ``expected`` is the range in words (a callable: words read when asked, e.g.
+    the registered search methods); ``why`` where the range comes from (both printed by the scenario
+    reference and the command line's help)."""
+
+    words: str | Callable[[], str]
+    accepts: Callable[[object], bool]
+    convert: Callable = lambda v: v  # the value as it came
+    why: str = ""
+    own: Callable | None = None  # the search's own rule ``own(value, key)``, with its own words (_of)
+
+    @property
+    def expected(self) -> str:
+        return self.words() if callable(self.words) else self.words
+
+    def __call__(self, value, key: str):
+        if self.own is not None:
+            return self.own(value, key)
+        if not self.accepts(value):
+            raise SettingError(key, f" must be {self.expected}, got {value!r}")
+        return self.convert(value)
+
+
+def _real(v) -> bool:
+    return not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer, np.floating)) \
+        and math.isfinite(v)
+
+
+def number(lo: float | None = None, hi: float | None = None, *, open_lo: bool = False, why: str = "") -> Rule:
+    """A finite number (not a bool) in [lo, hi] (``open_lo``: (lo, hi]; None: unbounded on that side)."""
+    left = f"{'(' if open_lo else '['}{lo:g}" if lo is not None else None
+    words = (f"a number in {left}, {hi:g}]" if lo is not None and hi is not None else
+             f"a finite number {'>' if open_lo else '>='} {lo:g}" if lo is not None else
+             f"a finite number <= {hi:g}" if hi is not None else "a finite number")
+
+    def accepts(v) -> bool:
+        return _real(v) and (lo is None or (v > lo if open_lo else v >= lo)) and (hi is None or v <= hi)
+    return Rule(words, accepts, float, why)
+
+
+def count(lo: int = 0, why: str = "") -> Rule:
+    """A whole number (an int or a numpy integer, not a bool) ≥ ``lo``."""
+    return Rule(f"an integer >= {lo}", lambda v: not isinstance(v, (bool, np.bool_))
+                and isinstance(v, (int, np.integer)) and v >= lo, int, why)
+
+
+def one_of(options, why: str = "") -> Rule:
+    """One of ``options`` (strings)."""
+    return Rule("one of " + ", ".join(map(repr, options)), lambda v: isinstance(v, str) and v in options, str, why)
+
+
+def optional(rule: Rule) -> Rule:
+    """None (YAML null) or what ``rule`` accepts."""
+    return Rule(f"null or {rule.expected}", lambda v: v is None or rule.accepts(v),
+                lambda v: None if v is None else rule.convert(v), rule.why)
+
+
+def _of(check, words, why: str = "") -> Rule:
+    """A rule that is one of the search's own (``check(value, key)``, :mod:`merger.search.problem`)."""
+    def accepts(v) -> bool:
+        try:
+            check(v, "")
+        except ValueError:
+            return False
+        return True
+
+    return Rule(words, accepts, why=why, own=check)
+
+
+FLAG = Rule("true or false", lambda v: isinstance(v, (bool, np.bool_)), bool)
+POSITIVE = number(0.0, open_lo=True)
+FRACTION = number(0.0, 1.0)
+
+# Every MergeParams setting's one rule (a setting added to MergeParams without one fails the import). The
+# ranges are the algorithm's: ν is ω̃ = agr̃ / (agr̃ + dis) on the whole maps whatever the search's measure
+# (merger.team.verify), so a threshold outside [0, 1] accepts or refuses everything; the ROI score of the
+# roi_score rule is the measure's, ω̃ and ω in [0, 1], NCC in [-1, 1]; a drop of ν is at most 2.
+RULES: dict[str, Rule] = {
+    "roi_m": _of(lambda v, key: check_roi(v, key=key), "a number of metres > 0"),
+    "measure": _of(check_measure, MEASURE_EXPECTED),
+    "method": Rule(lambda: "a registered search method: one of " + ", ".join(map(repr, sorted(SEARCH_METHODS))),
+                   lambda v: isinstance(v, str) and v in SEARCH_METHODS, str),  # read when checked: plug-ins
+    "verification": one_of(VERIFICATIONS),
+    "nu_min": number(0.0, 1.0, why="ν is ω̃ = agr̃ / (agr̃ + dis) of the whole maps, whatever the search's "
+                     "measure"),
+    "min_support": count(0),
+    "score_min": number(-1.0, 1.0, why="the roi_score rule's threshold on the search's score: ω̃ and ω lie "
+                        "in [0, 1], NCC in [-1, 1]"),
+    "window_m": _of(lambda v, key: check_window(v, None, key),
+                    "a number of metres >= 0, at most a quarter of roi_m"),
+    "refine": FLAG,
+    "ambiguity_margin": optional(FRACTION),
+    "combine_orders": FLAG,
+    "roi_min_support": _of(check_floor, FLOOR_EXPECTED),
+    "tolerance_m": POSITIVE,
+    "contrast_min": POSITIVE,
+    "refine_whole": FLAG,
+    "research": one_of(RESEARCH_MODES),
+    "research_period_s": number(0.0, 1e6, open_lo=True, why="a staleness bound is a positive time (every version "
+                                "searched globally is research every_version)"),
+    "research_change": FRACTION,
+    "research_drop": number(0.0, 2.0, why="the fall of a score in [-1, 1]"),
+}
+if list(RULES) != [f.name for f in fields(MergeParams)]:
+    raise ImportError(f"MergeParams: rules for {list(RULES)}, settings {[f.name for f in fields(MergeParams)]}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,5 +1,6 @@
 """The `merger` command: align and merge real files, JSON output, one-line errors with exit code 2."""
 
+import dataclasses
 import json
 import math
 import re
@@ -11,11 +12,12 @@ import numpy as np
 import pytest
 
 from merger import load_map
-from merger.cli import build_parser, join_negative_xy, main
+from merger.cli import OPTIONS, UsageError, build_parser, join_negative_xy, main, params_from
 from merger.io.mapio import save_map
 from merger.search import angle_diff_deg
 from merger.synthetic import arc_viewpoints, partial_view_of_grid, robot_pose_on_circle, world_to_frame
-from merger.team.orders import MapInput, fused_layers
+from merger.team.orders import MapInput, MergeParams, fused_layers
+from merger.team.params import RULES
 from merger.team.superpose import fuse
 from merger.transform import rotation
 from tests.paths import REAL_MAP
@@ -188,7 +190,9 @@ BAD_PARAMS = [
     (["--window", "abc"], "--window"), (["--nu-min", "nan"], "--nu-min"), (["--nu-min", "5"], "--nu-min"),
     (["--nu-min", "-0.5"], "--nu-min"),  # ν is ω̃ ≥ 0: a negative threshold accepted every placement
     (["--min-support", "-1"], "--min-support"), (["--roi", "nan"], "--roi"), (["--roi", "-2"], "--roi"),
-    (["--roi", "1e6"], "--roi"), (["--roi", "inf"], "--roi"),
+    (["--roi", "1e6"], "--roi"), (["--roi", "inf"], "--roi"), (["--tolerance", "0"], "--tolerance"),
+    (["--contrast-min", "-1"], "--contrast-min"), (["--roi-min-support", "-1"], "--roi-min-support"),
+    (["--min-support", "1099511627776"], None),  # the whole-map support has no cap (only the ROI's floor has)
 ]
 
 
@@ -201,11 +205,38 @@ def test_bad_parameters_one_line_exit_2_nothing_written(saved, tmp_path, capsys,
     args = {"align": ["align", str(paths[0]), str(paths[1]), "--center", centers[0]],
             "merge": ["merge", str(paths[0]), str(paths[1]), "--center", centers[0], "-o", str(out / "m")],
             "demo": ["demo", "-o", str(out / "demo")]}[cmd]
+    if needle is None:
+        assert params_from(build_parser().parse_args([*args, *bad])).min_support == 2 ** 40
+        return
     assert main([*args, *bad]) == 2
     err = capsys.readouterr()
     assert err.out == "" and err.err.count("\n") == 1 and err.err.startswith("merger: error: ")
-    assert needle in err.err and ("expected" in err.err or "invalid" in err.err), err.err
+    assert needle in err.err and any(w in err.err for w in ("expected", "must be", "invalid")), err.err
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("cmd", ["align", "merge", "demo"])
+def test_the_options_default_to_merge_params_and_refuse_by_its_rules(cmd):
+    """Each merge option's default is MergeParams's and its refusal is the setting's one rule named by the
+    option (merger.team.params.RULES)."""
+    required = {"align": ["align", "a.yaml", "b.yaml", "--center", "0,0"],
+                "merge": ["merge", "a.yaml", "--center", "0,0", "-o", "m"], "demo": ["demo"]}[cmd]
+    args, d = build_parser().parse_args(required), MergeParams()
+    p = params_from(args)
+    assert all(getattr(p, f.name) == getattr(d, f.name) for f in dataclasses.fields(MergeParams))
+    for name, (_, dest) in OPTIONS.items():
+        if hasattr(args, dest):
+            assert getattr(args, dest) == getattr(d, name), name
+    bad = build_parser().parse_args([*required, "--nu-min", "1.5"])
+    with pytest.raises(UsageError) as e:
+        params_from(bad)
+    assert str(e.value) == "--nu-min must be a number in [0, 1], got 1.5" == str(_refusal("nu_min", 1.5, "--nu-min"))
+
+
+def _refusal(name, value, key):
+    with pytest.raises(ValueError) as e:
+        RULES[name](value, key)
+    return e.value
 
 
 def test_merge_params_value_error_is_the_last_line_of_defence(saved, monkeypatch, capsys):

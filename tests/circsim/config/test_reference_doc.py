@@ -18,7 +18,7 @@ def test_reference_lists_every_section_and_the_cli_prints_it(capsys):
     text = scenario_reference()
     for key in TOP_KEYS:
         assert f"`{key}" in text, key
-    for row in ("| `merger.nu_min` | `0.5` | a number in [0, 1] |", "| `world.pillars[].radius` | `0.2` |",
+    for row in ("| `merger.nu_min` | `0.5` | a number in [0, 1] — ν is ω̃", "| `world.pillars[].radius` | `0.2` |",
                 "| `world.objects[].center` | (required) |", "`latency` → `network.latency_s`"):
         assert row in text, row
     assert main(["scenarios", "--reference"]) == 0

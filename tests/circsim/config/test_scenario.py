@@ -202,7 +202,8 @@ def test_overrides_are_applied_before_the_file_is_validated(tmp_path):
     ("robots: {motion: wander}", "scene.yaml: robots.motion: expected one of 'online', 'offline', got 'wander'"),
     ("center_error: {per_robot: {Bob: [0.1, 0]}}",
      "scene.yaml: center_error.per_robot.Bob: expected a robot name (one of Lyon, Auckland, Nevers)"),
-    ("merger: {measure: sad}", "scene.yaml: merger.measure: expected one of 'similarity', 'birk_carpin', 'ncc'"),
+    ("merger: {measure: sad}", "scene.yaml: merger.measure must be one of 'similarity', 'birk_carpin', 'ncc', got "
+                               "'sad'"),
     ("network: {loss: 1}", "scene.yaml: network.loss: expected a number in [0, 1), got 1"),
     ("merger: {share_hypotheses: maybe}", "scene.yaml: merger.share_hypotheses: expected true or false, got 'maybe'"),
     ("merger: {share_hypotheses: 1}", "scene.yaml: merger.share_hypotheses: expected true or false, got 1"),

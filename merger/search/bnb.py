@@ -24,6 +24,10 @@ from .bounds import region_upper
 from .counts import exact_counts, exact_counts_sparse, fill_moving, sparse_moving
 
 NO_RANK = 1 << 40  # larger than any tie rank
+# the incumbent: its value and tie keys (mode 0: (rank, angle), mode 1: (angle, rank)), its element (angle
+# index, translation (a, b) in cells) and counts; angle −1: nothing found yet
+INCUMBENT = np.dtype([("value", np.float64), ("key_p", np.int64), ("key_s", np.int64), ("angle", np.int64),
+                      ("a", np.int64), ("b", np.int64), ("agr", np.int64), ("dis", np.int64), ("ff", np.int64)])
 
 
 class Work(NamedTuple):
@@ -63,12 +67,13 @@ class Query(NamedTuple):
 
 @njit(cache=True, nogil=True)
 def branch_and_bound(t, w, q, inc, env):
-    """Best-first branch and bound (Lemma 5). ``inc`` = [value, key p, key s, angle, a, b, agr, dis, ff]:
-    the incumbent, updated in place; ``env``: per angle the largest bound or exact value seen (an upper
+    """Best-first branch and bound (Lemma 5). ``inc``: the incumbent, one :data:`INCUMBENT` record updated
+    in place; ``env``: per angle the largest bound or exact value seen (an upper
     envelope of its best value over translations). Returns (regions bounded, exact evaluations, whether
     the search completed within the budget — the incumbent is then the answer —, the frontier regions
     (m, 6) and their bounds (m): with ``q.keep`` ≥ 0 the regions dropped and elements evaluated whose
     bound was at least the incumbent − keep at that moment, Lemma 5b)."""
+    best = inc[0]
     hk, hb, hn, size = _first_regions(t, q)
     reg = np.empty(6, np.int64)  # the region visited
     child = np.empty((4, 6), np.int64)
@@ -84,8 +89,8 @@ def branch_and_bound(t, w, q, inc, env):
         kp, ks = _first_keys(t, q, reg)
         if kp < 0:
             continue  # nothing allowed in it
-        if bound != np.inf and not _before(bound, kp, ks, inc[0], inc[1], inc[2]):
-            fr_nodes, fr_vals, n_fr = _dropped(env, reg, bound, inc[0], q.keep, fr_nodes, fr_vals, n_fr)
+        if bound != np.inf and not _before(bound, kp, ks, best.value, best.key_p, best.key_s):
+            fr_nodes, fr_vals, n_fr = _dropped(env, reg, bound, best.value, q.keep, fr_nodes, fr_vals, n_fr)
             continue
         if reg[0] == reg[1] and reg[2] == reg[3] and reg[4] == reg[5]:  # one element: exactly
             if q.excl_a[reg[0]] and q.excl_t[reg[4] * t.side + reg[2]]:
@@ -93,12 +98,12 @@ def branch_and_bound(t, w, q, inc, env):
             agr, dis, ff, v = _evaluate(t, w, q, reg[0], reg[2], reg[4])
             n_exact += 1
             env[reg[0]] = max(env[reg[0]], v)
-            if q.keep >= 0 and v >= inc[0] - q.keep:
+            if q.keep >= 0 and v >= best.value - q.keep:
                 fr_nodes, fr_vals, n_fr = _keep(fr_nodes, fr_vals, n_fr, reg, v)
-            if _before(v, kp, ks, inc[0], inc[1], inc[2]):
-                inc[0], inc[1], inc[2] = v, kp, ks
-                inc[3], inc[4], inc[5] = reg[0], reg[2] - t.k, reg[4] - t.k
-                inc[6], inc[7], inc[8] = agr, dis, ff
+            if _before(v, kp, ks, best.value, best.key_p, best.key_s):
+                best.value, best.key_p, best.key_s = v, kp, ks
+                best.angle, best.a, best.b = reg[0], reg[2] - t.k, reg[4] - t.k
+                best.agr, best.dis, best.ff = agr, dis, ff
             continue
         for c in range(_split(reg, child)):
             if not _allowed(t, q, child[c]):
@@ -106,9 +111,9 @@ def branch_and_bound(t, w, q, inc, env):
             n_bounds += 1
             lo, hi = child[c, 0], child[c, 1]
             pl = _points(t, w, q, pts, have, lo) if t.k > 0 and lo == hi else pts[lo]
-            ub = region_upper(t, q.angles, q.asum, lo, hi, child[c, 2:], pl, inc[0])
-            if ub < inc[0]:  # dropped now, as its visit would drop it (the incumbent only grows)
-                fr_nodes, fr_vals, n_fr = _dropped(env, child[c], ub, inc[0], q.keep, fr_nodes, fr_vals, n_fr)
+            ub = region_upper(t, q.angles, q.asum, lo, hi, child[c, 2:], pl, best.value)
+            if ub < best.value:  # dropped now, as its visit would drop it (the incumbent only grows)
+                fr_nodes, fr_vals, n_fr = _dropped(env, child[c], ub, best.value, q.keep, fr_nodes, fr_vals, n_fr)
                 continue
             # visit order (free: only bounds and keys decide): the highest bound, deeper regions first among
             # equal bounds (an incumbent sooner); the region keeps its own bound for the pruning test

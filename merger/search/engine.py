@@ -33,7 +33,7 @@ from .problem import (
     runner_up,
     wrap_deg,
 )
-from .searcher import COARSE, Searcher, incumbent, searcher_for
+from .searcher import COARSE, Searcher, searcher_for
 
 FRONTIER_KEEP = 0.12  # the fast search keeps its frontier within this of its incumbent (the ambiguity
 # rule's runner-up floor is the answer's score − margin − 0.05, margin 0.05 by default with a window)
@@ -45,8 +45,8 @@ def fine_answer(s: Searcher, th_c: float, tc):
     exact wherever a bound reaches the best (a plateau of equal scores is exact), elsewhere bounds below
     it (the sub-cell refinement reads only the plateau)."""
     angles = fine_angles(th_c)
-    inc, env = s.run(angles, tmask=s.translation_mask([tc]), sector0=angles.size)
-    kf = int(inc[3])
+    best, env = s.run(angles, tmask=s.translation_mask([tc]), sector0=angles.size)
+    kf = best.angle
     value, counts = s.exact(float(angles[kf]), *tc)
     vals = env.copy()
     vals[kf] = value
@@ -60,9 +60,9 @@ def fast_search(problem) -> Alignment:
     """The thesis's grid answer by branch and bound (see the module documentation); exact."""
     s = searcher_for(problem)
     # rotation only: every whole-degree angle bounded at once (polar cells), then the best-first search
-    inc, env = s.run(COARSE, init=s.initial_regions(), keep=FRONTIER_KEEP)
-    caches.keep_frontier(problem, (*s.frontier, float(inc[0])))
-    th_c, tc = float(inc[3]), (int(inc[4]), int(inc[5]))
+    best, env = s.run(COARSE, init=s.initial_regions(), keep=FRONTIER_KEEP)
+    caches.keep_frontier(problem, (*s.frontier, best.value))
+    th_c, tc = float(best.angle), (best.a, best.b)
     angles, fine_vals, kf, value, counts = fine_answer(s, th_c, tc)
     theta = wrap_deg(float(angles[kf]))
     # the profile: an upper envelope of the reference's, never above the best coarse value (Lemma 5), and
@@ -71,7 +71,7 @@ def fast_search(problem) -> Alignment:
     return Alignment(theta, value, counts, problem.measure, "fast", problem.roi_m, env,
                      runner_up(env, theta), window_m=problem.window_m,
                      translation_m=problem.offset_m(*tc), cells=tc, fine=(angles, fine_vals),
-                     beyond_query=BeyondQuery(problem, float(inc[0]), (th_c, tc)),
+                     beyond_query=BeyondQuery(problem, best.value, (th_c, tc)),
                      evidence={"profile": "upper_envelope", "runner_up": "upper_envelope"})
 
 
@@ -91,7 +91,6 @@ def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budge
     far = np.abs(angle_diff_deg(COARSE, theta_deg)) >= RUNNER_UP_MIN_SEPARATION_DEG
     if not far.any():
         return float("nan"), float("nan")
-    inc = None if floor is None else incumbent(np.nextafter(floor, -np.inf))
     s = searcher_for(problem)
     init = None
     fr = caches.frontier(problem) if floor is not None else None
@@ -105,10 +104,11 @@ def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budge
         nodes[:, 0] = nodes[:, 1] = np.arange(COARSE.size)
         nodes[:, 3] = nodes[:, 5] = s.p.side - 1
         init = (nodes, np.asarray(envelope, np.float64))
-    inc, _ = s.run(COARSE, mode=1, amask=far, inc=inc, budget=budget, init=init)
-    if inc[3] < 0:
+    above = -np.inf if floor is None else np.nextafter(floor, -np.inf)  # at least floor
+    best, _ = s.run(COARSE, mode=1, amask=far, above=above, budget=budget, init=init)
+    if best.angle < 0:
         return float("nan"), float("nan")
-    return float(inc[3]), float(inc[0])
+    return float(best.angle), best.value
 
 
 def _exhaustive(problem, method: str, table: np.ndarray, ts, values_at, exact_at, beyond_query=None) -> Alignment:

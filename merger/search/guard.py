@@ -19,7 +19,7 @@ import numpy as np
 
 from .prepared import translation_offsets
 from .problem import MAX_WINDOW_FRACTION, angle_diff_deg
-from .searcher import COARSE, incumbent, searcher_for
+from .searcher import COARSE, searcher_for
 
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)
 BEYOND_APART_STEPS = 1.5  # ... for alignments more than one grid step (1°, one cell) from the answer
@@ -66,11 +66,11 @@ def beyond_window(problem, best_value: float, answer, budget: int = BEYOND_BUDGE
     tmask = _ring_mask(problem.window_cells, kb)
     bb, aa = np.divmod(np.arange(side * side), side)
     excl_t = tmask & ((aa - kb - a_ans) ** 2 + (bb - kb - b_ans) ** 2 <= BEYOND_APART_STEPS ** 2)
-    inc, _ = s.run(COARSE, mode=1, tmask=tmask, inc=incumbent(best_value), excl=(excl_a, excl_t), budget=budget,
-                   init=_ring_regions(kb))  # strictly above best_value
-    if inc[3] < 0:
+    best, _ = s.run(COARSE, mode=1, tmask=tmask, above=best_value, excl=(excl_a, excl_t), budget=budget,
+                    init=_ring_regions(kb))
+    if best.angle < 0:
         return None
-    return float(inc[3]), big.offset_m(int(inc[4]), int(inc[5])), float(inc[0])
+    return float(best.angle), big.offset_m(best.a, best.b), best.value
 
 
 @lru_cache(maxsize=16)

@@ -62,9 +62,9 @@ def local_search(problem, theta_deg: float, cells: tuple[int, int], half_deg: in
     module documentation), refined when the problem asks; by the branch and bound."""
     s = searcher_for(problem)
     amask, ts = region(problem, theta_deg, cells, half_deg, half_cells)
-    inc, env = s.run(COARSE, amask=amask, tmask=s.translation_mask(ts))
-    tc = (int(inc[4]), int(inc[5]))
-    angles, fine_vals, kf, value, counts = fine_answer(s, float(inc[3]), tc)
+    best, env = s.run(COARSE, amask=amask, tmask=s.translation_mask(ts))
+    tc = (best.a, best.b)
+    angles, fine_vals, kf, value, counts = fine_answer(s, float(best.angle), tc)
     profile = np.where(amask, env, -np.inf)
     return _alignment(problem, "fast-local", float(angles[kf]), value, counts, tc, angles, fine_vals, profile)
 

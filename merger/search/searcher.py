@@ -10,13 +10,14 @@ from __future__ import annotations
 import math
 import threading
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import caches
 from ..lattice import rotation_entries
 from ..measures import Counts, uppers
-from .bnb import Query, Work, branch_and_bound
+from .bnb import INCUMBENT, Query, Work, branch_and_bound
 from .counts import exact_counts, fill_moving, moving_points_all, sparse_moving, values_at
 from .polar import angle_bounds, polar_tables
 from .prepared import Prepared
@@ -30,15 +31,28 @@ MAX_SLOTS = 32  # ... at most this many angles (a search evaluates few angles ex
 SECTOR0 = 1  # the branch and bound starts from sectors of this many angles × the whole window (one angle:
 # on the windowed bench, ROI 8 m and W 0.5 m, no sector's bound pruned; docs/performance-history.md)
 POINTS_BYTES = 32 * 2**20  # the coarse angles' occupied lattice points kept per moving map, at most this size
-NO_INCUMBENT = (-np.inf, 0, 0, -1, 0, 0, 0, 0, 0)  # [value, key p, key s, angle, a, b, agr, dis, ff]
 
 
-def incumbent(value: float = -np.inf) -> np.ndarray:
-    """A branch and bound's starting incumbent: nothing found, to be beaten strictly above ``value``."""
-    out = np.array(NO_INCUMBENT, np.float64)
-    out[0] = value
-    if value != -np.inf:
-        out[1] = out[2] = -1
+class Best(NamedTuple):
+    """What a branch and bound found: the first maximum in its order, or (``angle`` −1) nothing above
+    its starting value."""
+
+    value: float
+    angle: int  # index into the search's angles; −1: none
+    a: int  # translation, cells
+    b: int
+    agr: int
+    dis: int
+    ff: int
+
+
+def _incumbent(above: float) -> np.ndarray:
+    """The starting incumbent: nothing found; −inf, or an element must score strictly above ``above``
+    (its tie keys −1: no element's keys come before them)."""
+    out = np.zeros(1, INCUMBENT)
+    out[0]["value"], out[0]["angle"] = above, -1
+    if above != -np.inf:
+        out[0]["key_p"] = out[0]["key_s"] = -1
     return out
 
 
@@ -99,9 +113,11 @@ class Searcher:
             self._asum = out
         return self._asum
 
-    def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, inc=None, excl=None,
-            sector0: int = SECTOR0, budget: int = 0, init=None, raster: bool = False, keep: float = -1.0):
-        """Branch and bound over ``angles`` × the window; returns (incumbent array, envelope). With a
+    def run(self, angles: np.ndarray, *, mode: int = 0, amask=None, tmask=None, above: float = -np.inf,
+            excl=None, sector0: int = SECTOR0, budget: int = 0, init=None, raster: bool = False,
+            keep: float = -1.0) -> tuple[Best, np.ndarray]:
+        """Branch and bound over ``angles`` × the window; returns (:class:`Best`, envelope); ``above``: only
+        an element scoring strictly above it is looked for. With a
         ``budget`` of bounded regions, ``self.complete`` says whether the search finished within it.
         ``raster``: translations tie in raster order (b, then a) instead of the nearest-first order.
         ``keep`` ≥ 0: ``self.frontier`` holds the regions dropped (elements evaluated) within ``keep`` of the
@@ -115,12 +131,14 @@ class Searcher:
             q = Query(angles, rot, _mask(amask, angles.size), _mask(tmask, n_t), _raster(p.side) if raster else p.rank,
                       self.angle_sums(), *excl, *(_NO_INIT if init is None else init), *self._points(angles),
                       int(mode), int(sector0), int(budget), float(keep))
-            inc = incumbent() if inc is None else inc
+            inc = _incumbent(above)
             env = np.full(angles.size, -np.inf)
             nb, ne, self.complete, *self.frontier = branch_and_bound(p.tables, self.work, q, inc, env)
             self.stats["bounds"] += int(nb)
             self.stats["exact"] += int(ne)
-            return inc, env
+            r = inc[0]
+            return Best(float(r["value"]), int(r["angle"]), int(r["a"]), int(r["b"]), int(r["agr"]), int(r["dis"]),
+                        int(r["ff"])), env
 
     def first_max(self, angles, ts) -> tuple[float, int, tuple[int, int]] | None:
         """The first maximum of the exact values over ``angles`` (in that order) × translations ``ts``
@@ -131,8 +149,8 @@ class Searcher:
         if angles.size == 0 or len(ts) == 0:
             return None
         # one first region per angle: the angles need not be ascending (they may wrap at 360°)
-        inc, _ = self.run(angles, mode=1, tmask=self.translation_mask(ts), sector0=1, raster=True)
-        return float(inc[0]), int(inc[3]), (int(inc[4]), int(inc[5]))
+        best, _ = self.run(angles, mode=1, tmask=self.translation_mask(ts), sector0=1, raster=True)
+        return best.value, best.angle, (best.a, best.b)
 
     def _points(self, angles: np.ndarray):
         """The moving ROI's occupied lattice points at every angle of ``angles`` (start, count, buffer) for

@@ -54,7 +54,7 @@ def inner_limit(half):
     return half * (1.0 - 1e-12) - 1e-9
 
 
-@njit(cache=True, nogil=True, inline=True)
+@njit(cache=True, nogil=True)
 def region_bound(t, th_mid, half_rad, box, level):
     """(agr_hi, dis_lo) over the angles within ``half_rad`` of ``th_mid`` (degrees) and the box ``box`` =
     (a0, a1, b0, b1) of translation indices, from the reference's occupied cells pooled in blocks of
@@ -164,7 +164,7 @@ def _exact_weights(wr0, wc0, ilo, ihi, jlo, jhi, n, res, q, r, c, box):
     return w_hi, w_lo, kx, ky, res * math.sqrt(hj * hj + hi_ * hi_), math.sqrt(kx * kx + ky * ky)
 
 
-@njit(cache=True, nogil=True, inline=True)
+@njit(cache=True, nogil=True)
 def moving_bound(t, pts, box):
     """(agr_hi, dis_lo) from the moving side at one angle over the box ``box`` = (a0, a1, b0, b1)
     (Lemma 3b): each occupied lattice point (``pts``, indices i·n + j) reads, at the box's translations,
@@ -244,7 +244,7 @@ def sum_ranges(t, asum, lo, hi, box):
     return sx_lo, sx_hi, sy_lo, sy_hi
 
 
-@njit(cache=True, nogil=True, inline=True)
+@njit(cache=True, nogil=True)
 def region_upper(t, angles, asum, lo, hi, box, pts, stop):
     """The measure's upper bound over the region angles[lo..hi] × ``box``: at one angle with a window,
     the moving side first (``pts``: that angle's occupied lattice points) — returned alone when it is

@@ -114,7 +114,8 @@ class MergerSettings(MergeParams):
         merging method (:mod:`merger.algorithms`; the other merger keys apply to "thesis").
     strategy : "auto" (default: "orders" for teams of up to three robots, "tree" beyond), "orders" (the
         thesis: every merge order of the maps held) or "tree" (pairwise alignments kept per map version,
-        the team assembled along a maximum spanning tree of the verified pairs).
+        the team assembled along a maximum spanning tree of the verified pairs): the online merger's
+        (``merger.team.online.STRATEGIES``, its default ``TeamMerger``'s).
     share_hypotheses : robots broadcast the alignment they hold (with its evidence) with every map they
         send, over the same simulated network; a robot adopts a received one only when it verifies on its
         own maps and scores a higher Σν there than its own (:mod:`merger.team.shared`). Off (default): every

@@ -137,23 +137,8 @@ def _exact_weights(wr0, wc0, ilo, ihi, jlo, jhi, n, res, q, r, c, box):
     translation, 1 when every translation reads it, the center (m) and half-diagonal (m) of the lattice
     points reading it, and |center|). Inlined, its arrays given: a call per cell made centers on cell
     centres 1.6–2x slower (measured)."""
-    a0, a1, b0, b1 = box[0], box[1], box[2], box[3]
-    i0, i1, j0, j1 = n, -1, n, -1
-    wr_hi, wr_lo, wc_hi, wc_lo = 0, 2, 0, 2
-    for b in range(b0, b1 + 1):
-        x = wr0[b, q]
-        wr_hi = max(wr_hi, x)
-        wr_lo = min(wr_lo, x)
-        if x > 0:
-            i0 = min(i0, ilo[b, r])
-            i1 = max(i1, ihi[b, r] - 1)
-    for a in range(a0, a1 + 1):
-        x = wc0[a, q]
-        wc_hi = max(wc_hi, x)
-        wc_lo = min(wc_lo, x)
-        if x > 0:
-            j0 = min(j0, jlo[a, c])
-            j1 = max(j1, jhi[a, c] - 1)
+    wr_hi, wr_lo, i0, i1 = _axis_reads(wr0, ilo, ihi, box[2], box[3], q, r, n)
+    wc_hi, wc_lo, j0, j1 = _axis_reads(wc0, jlo, jhi, box[0], box[1], q, c, n)
     w_hi = wr_hi * wc_hi
     w_lo = 1 if wr_lo >= 1 and wc_lo >= 1 else 0
     m = (n - 1) / 2.0
@@ -162,6 +147,21 @@ def _exact_weights(wr0, wc0, ilo, ihi, jlo, jhi, n, res, q, r, c, box):
     hj = (j1 - j0) / 2.0
     hi_ = (i1 - i0) / 2.0
     return w_hi, w_lo, kx, ky, res * math.sqrt(hj * hj + hi_ * hi_), math.sqrt(kx * kx + ky * ky)
+
+
+@njit(cache=True, nogil=True, inline=True)
+def _axis_reads(w0, lo_tab, hi_tab, t0, t1, q, r, n):
+    """Along one axis, over the translations t0..t1: the most and the fewest lattice lines reading cell q
+    (table row r) at one translation, and the first and last of those lines."""
+    w_hi, w_lo, i0, i1 = 0, 2, n, -1
+    for b in range(t0, t1 + 1):
+        x = w0[b, q]
+        w_hi = max(w_hi, x)
+        w_lo = min(w_lo, x)
+        if x > 0:
+            i0 = min(i0, lo_tab[b, r])
+            i1 = max(i1, hi_tab[b, r] - 1)
+    return w_hi, w_lo, i0, i1
 
 
 @njit(cache=True, nogil=True)

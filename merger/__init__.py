@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
-from .search import ROI_MIN_SUPPORT, SEARCH_METHODS, Alignment, RotationProblem, register_method, search
-from .search.problem import DEFAULT_MEASURE, DEFAULT_ROI_M, DEFAULT_WINDOW_M
+from .search import SEARCH_METHODS, Alignment, RotationProblem, register_method, search
+from .settings import DEFAULT_MEASURE, DEFAULT_ROI_M, DEFAULT_WINDOW_M, ROI_MIN_SUPPORT
 from .team.online import MapMessage, TeamMerger
 from .team.orders import merge_orders, merge_team
 from .team.params import DEFAULT_METHOD, DEFAULT_REFINE, MapInput, MergeParams, OrderResult, TeamMergeResult

@@ -42,9 +42,9 @@ from .io.mapio import (
 )
 from .limits import MAX_ROI_M
 from .measures import MEASURES
-from .search import MAX_ROI_CELLS, SEARCH_METHODS
-from .search.problem import check_roi as roi_rule
-from .search.problem import check_window
+from .search import SEARCH_METHODS
+from .settings import MAX_ROI_CELLS, check_window
+from .settings import check_roi as roi_rule
 from .team.orders import MapInput, MergeParams, merge_team
 from .team.params import RULES, VERIFICATIONS
 from .team.pool import threads
@@ -120,7 +120,7 @@ def check_center(grid, center, roi_m: float, what: str, path) -> None:
 
 def check_roi(roi_m: float, resolution: float, path) -> None:
     """--roi in cells of the maps' resolution (the ROI's rule with the inputs' limits,
-    :func:`merger.search.problem.check_roi`)."""
+    :func:`merger.settings.check_roi`)."""
     try:
         roi_rule(roi_m, resolution, "--roi", limits=True, cells_of=str(path))
     except ValueError as e:

@@ -39,7 +39,7 @@ from merger.limits import (
     one_line,
     read_input,
 )
-from merger.search.problem import check_roi
+from merger.settings import check_roi
 from merger.team.online import STRATEGIES, TeamMerger
 from merger.team.params import RULES, MergeParams
 

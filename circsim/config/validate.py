@@ -53,7 +53,7 @@ def number(gt=None, ge=None, lt=None, le=None, why: str = ""):
 
 def refused(e: ValueError, path: str) -> Invalid:
     """A merger rule's refusal as an :class:`Invalid` at ``path``: the rule's words after the key when it
-    gives them (``rest``, :class:`merger.search.problem.SettingError`), else its whole message."""
+    gives them (``rest``, :class:`merger.settings.SettingError`), else its whole message."""
     rest = getattr(e, "rest", None)
     return Invalid(path, rest, sep="") if rest is not None else Invalid(path, str(e))
 

@@ -14,7 +14,8 @@ Layout (an acyclic core; proofs in docs/design/search.md, cited as Lemma N):
 * :mod:`.engine` — the searches: ``spec`` (numpy definition), ``reference`` (compiled exhaustive),
   ``fast`` (branch and bound, the same answer) and the exact runner-up; :mod:`.guard` — the guard
   beyond the window; :mod:`.local` — the search about an earlier answer; :mod:`.refine` — sub-cell
-  refinement. The caches are :mod:`merger.caches` (``clear_all()``).
+  refinement. The caches are :mod:`merger.caches` (``clear_all()``); the settings' defaults and
+rules, :mod:`merger.settings`.
 
 A method is a callable ``(problem) -> Alignment`` registered in :data:`SEARCH_METHODS`.
 """
@@ -24,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..caches import clear_all
+from ..settings import MAX_ROI_CELLS, MAX_WINDOW_FRACTION, ROI_MIN_SUPPORT, check_window
 from .engine import exact_runner_up, fast_search, reference_search, spec_search
 from .guard import BeyondQuery, beyond_window, reference_beyond
 from .prepared import translation_offsets
@@ -31,15 +33,10 @@ from .problem import (
     COARSE_STEP_DEG,
     FINE_HALF_WIDTH_DEG,
     FINE_STEP_DEG,
-    MAX_ROI_CELLS,
-    MAX_WINDOW_FRACTION,
-    ROI_MIN_SUPPORT,
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
     RotationProblem,
     angle_diff_deg,
-    check_roi_cells,
-    check_window,
     fine_angles,
     runner_up,
     window_cells,
@@ -79,7 +76,7 @@ __all__ = [
     "COARSE_STEP_DEG", "FINE_HALF_WIDTH_DEG", "FINE_STEP_DEG", "MAX_ROI_CELLS", "MAX_WINDOW_FRACTION",
     "ROI_MIN_SUPPORT", "RUNNER_UP_MIN_SEPARATION_DEG", "SEARCH_METHODS", "Alignment", "BeyondQuery",
     "RotationProblem",
-    "angle_diff_deg", "beyond_window", "check_roi_cells", "check_window", "clear_all", "exact_runner_up",
+    "angle_diff_deg", "beyond_window", "check_window", "clear_all", "exact_runner_up",
     "fast_search", "fine_angles",
     "reference_beyond", "reference_search", "refine_alignment", "register_method", "runner_up", "search",
     "searcher_for", "spec_search", "translation_offsets", "window_cells", "wrap_deg",

@@ -12,19 +12,15 @@ turned into a bound on the value by the measure (:func:`merger.measures.upper_of
 * :func:`region_upper` — both, as the branch and bound combines them (compiled);
 * :func:`merger.search.polar.angle_bounds` — every whole degree at once, rotation only (Lemma 6).
 
-:func:`bound_of` and :func:`polar_bound` are the same bounds called from Python (tests check each
-against the brute-force maximum over its region).
+tests/merger/search/test_bounds.py checks each against the brute-force maximum over its region.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..jit import njit
 from ..measures import upper_of
-from .counts import sparse_moving
 
 EPS_CELLS = 1e-6  # margin of the bound's discs (cells): covers the bound's own float rounding
 SMALL_BOX = 4  # boxes narrower than this get exact per-translation weights (non-plain ROIs)
@@ -263,36 +259,3 @@ def region_upper(t, angles, asum, lo, hi, box, pts, stop):
         agr_hi = min(agr_hi, m_agr)
         dis_lo += m_dis
     return upper_of(t.code, t.floor, agr_hi, dis_lo, sx_lo, sx_hi, sy_lo, sy_hi, t.n * t.n)
-
-
-def bound_of(searcher, angles, lo: int, hi: int, box, side: str = "both") -> tuple[int, int, float]:
-    """(agr_hi, dis_lo, value_hi) over the region angles[lo..hi] × ``box`` of ``searcher``'s problem
-    (translation indices 0..2K; cells = index − K): ``side`` "reference" (:func:`region_bound`), "moving"
-    (:func:`moving_bound`: one angle, a window) or "both" (as the branch and bound combines them: the
-    moving side too at one angle of a windowed problem)."""
-    t = searcher.p.tables
-    angles = np.asarray(angles, np.float64)
-    searcher.select(angles)
-    asum = searcher.angle_sums()
-    box = np.asarray(box, np.int64)
-    sx_lo, sx_hi, sy_lo, sy_hi = sum_ranges(t, asum, lo, hi, box)
-    agr, dis = 1 << 40, 0
-    one_angle = t.k > 0 and lo == hi
-    if side == "moving" and not one_angle:
-        raise ValueError("the moving side bounds one angle of a windowed problem")
-    if side == "moving" or (side == "both" and one_angle):
-        agr, dis = moving_bound(t, searcher.points_at(angles, lo), box)
-    if side in ("reference", "both"):
-        half_rad = math.radians((angles[hi] - angles[lo]) / 2.0)
-        ra, rd = region_bound(t, (angles[lo] + angles[hi]) / 2.0, half_rad, box, block_level(t, box, half_rad))
-        agr, dis = min(agr, ra), dis + rd
-    return int(agr), int(dis), float(upper_of(t.code, t.floor, agr, dis, sx_lo, sx_hi, sy_lo, sy_hi, t.n * t.n))
-
-
-def polar_bound(searcher) -> np.ndarray:
-    """Rotation only: an upper bound of the value at every whole degree 0..359 (Lemma 6)."""
-    return searcher.polar_bounds()
-
-
-__all__ = ["EPS_CELLS", "SMALL_BOX", "block_level", "bound_of", "box_classes", "inner_limit", "moving_bound",
-           "polar_bound", "region_bound", "region_upper", "sat_sum", "sparse_moving", "sum_ranges"]

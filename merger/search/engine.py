@@ -111,19 +111,26 @@ def exact_runner_up(problem, theta_deg: float, floor: float | None = None, budge
     return float(best.angle), best.value
 
 
-def _exhaustive(problem, method: str, table: np.ndarray, ts, values_at, exact_at, beyond_query=None) -> Alignment:
-    """The grid answer from the exhaustive ``table`` of values (translations ``ts`` × 360 coarse angles):
-    its first maximum (translation order, then θ), then the fine angles' first maximum by ``values_at(θ,
-    t)``; ``exact_at(θ, t)`` gives the answer's (value, counts)."""
-    i_best, th_best = np.unravel_index(int(np.argmax(table)), table.shape)  # first max: t order, then θ
-    tc = ts[int(i_best)]
-    angles = fine_angles(float(th_best))
+def grid_answer(table: np.ndarray, ts, coarse, values_at, exact_at):
+    """The grid answer from an exhaustive ``table`` of values (translations ``ts`` × ``coarse`` angles): its
+    first maximum (translation order, then θ), then the fine angles' first maximum by ``values_at(θ, t)``;
+    ``exact_at(θ, t)`` gives the answer's (value, counts). Returns (coarse θ, its value, t, fine angles,
+    their values, index of the answer, value, counts)."""
+    i_best, x_best = np.unravel_index(int(np.argmax(table)), table.shape)  # first max: t order, then θ
+    tc, th_c = ts[int(i_best)], float(coarse[int(x_best)])
+    angles = fine_angles(th_c)
     fine_vals = np.array([values_at(float(a), tc) for a in angles])
     kf = int(np.argmax(fine_vals))
-    theta = wrap_deg(float(angles[kf]))
     value, counts = exact_at(float(angles[kf]), tc)
+    return th_c, float(table[int(i_best), int(x_best)]), tc, angles, fine_vals, kf, value, counts
+
+
+def _exhaustive(problem, method: str, table: np.ndarray, ts, values_at, exact_at, beyond_query=None) -> Alignment:
+    """The grid answer (:func:`grid_answer`) of the exhaustive ``table`` over the 360 coarse angles."""
+    th_c, best, tc, angles, fine_vals, kf, value, counts = grid_answer(table, ts, COARSE, values_at, exact_at)
+    theta = wrap_deg(float(angles[kf]))
     profile = table.max(axis=0)
-    query = None if beyond_query is None else beyond_query(float(table[int(i_best), int(th_best)]), (int(th_best), tc))
+    query = None if beyond_query is None else beyond_query(best, (int(th_c), tc))
     return Alignment(theta, value, counts, problem.measure, method, problem.roi_m, profile,
                      runner_up(profile, theta), window_m=problem.window_m, translation_m=problem.offset_m(*tc),
                      cells=tc, fine=(angles, fine_vals), beyond_query=query)

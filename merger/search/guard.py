@@ -17,8 +17,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..settings import MAX_WINDOW_FRACTION
 from .prepared import translation_offsets
-from .problem import MAX_WINDOW_FRACTION, angle_diff_deg
+from .problem import angle_diff_deg
 from .searcher import COARSE, searcher_for
 
 BEYOND_FACTOR = 2.0  # the guard beyond the window looks up to this × the window (≤ a quarter of the ROI)

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .engine import fine_answer
+from .engine import fine_answer, grid_answer
 from .prepared import translation_offsets
-from .problem import Alignment, angle_diff_deg, fine_angles, wrap_deg
+from .problem import Alignment, angle_diff_deg, wrap_deg
 from .refine import refine_alignment
 from .searcher import COARSE, searcher_for
 
@@ -78,12 +78,8 @@ def reference_local(problem, theta_deg: float, cells: tuple[int, int], half_deg:
     table = np.empty((len(ts), ths.size))
     for x, th in enumerate(ths):
         table[:, x] = s.values(float(th), ts)
-    i_best, x_best = np.unravel_index(int(np.argmax(table)), table.shape)  # first max: t order, then θ
-    tc = ts[int(i_best)]
-    angles = fine_angles(float(ths[int(x_best)]))
-    fine_vals = np.array([s.values(float(a), [tc])[0] for a in angles])
-    kf = int(np.argmax(fine_vals))
-    value, counts = s.exact(float(angles[kf]), *tc)
+    _, _, tc, angles, fine_vals, kf, value, counts = grid_answer(
+        table, ts, ths, lambda a, t: s.values(a, [t])[0], lambda a, t: s.exact(a, *t))
     profile = np.full(COARSE.size, -np.inf)
     profile[ths] = table.max(axis=0)
     return _alignment(problem, "reference-local", float(angles[kf]), value, counts, tc, angles, fine_vals, profile)

@@ -16,8 +16,16 @@ import numpy as np
 
 from ..grid import OccupancyGrid
 from ..lattice import extract_roi, roi_cells, rotated_roi
-from ..limits import MAX_ROI_M, MIN_ROI_CELLS
-from ..measures import MEASURES, Counts, Similarity, measure_fn
+from ..measures import Counts, Similarity, measure_fn
+from ..settings import (
+    DEFAULT_MEASURE,
+    DEFAULT_ROI_M,
+    DEFAULT_WINDOW_M,
+    check_floor,
+    check_measure,
+    check_roi,
+    check_window,
+)
 
 
 def window_cells(window_m: float, resolution: float) -> int:
@@ -25,20 +33,10 @@ def window_cells(window_m: float, resolution: float) -> int:
     return int(math.floor(window_m / resolution + 1e-9)) if window_m > 0 else 0
 
 
-MAX_WINDOW_FRACTION = 0.25  # the translation window may cover at most a quarter of the ROI side
-MAX_ROI_CELLS = 4000  # ROI side in cells (100 m at 2.5 cm): the search's tables and OpenCV's 32,767 limits
-# The one default of each of the search's settings that a merge, the scenarios and the command lines share
-# (RotationProblem's, merger.team.params.MergeParams's and merger.align's defaults are these):
-DEFAULT_ROI_M = 8.0  # the ROI side, metres (the thesis's 8 m square)
-DEFAULT_WINDOW_M = 0.5  # the translation window, metres (centers trusted to ±0.5 m; 0: the thesis's rotation only)
-DEFAULT_MEASURE = "similarity"  # what the search maximizes (the thesis's ω̃, eq. 3.11)
-MAX_SUPPORT_FLOOR = 2 ** 40  # cells (check_floor): exact in the kernels' int64 and float64 (an ROI holds <= 1.6e7)
-
 COARSE_STEP_DEG = 1.0
 FINE_STEP_DEG = 0.1
 FINE_HALF_WIDTH_DEG = 1.0
 RUNNER_UP_MIN_SEPARATION_DEG = 10.0
-ROI_MIN_SUPPORT = 50  # cells: the support floor of align() and merge cycles (RotationProblem.min_support)
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,15 +45,15 @@ class RotationProblem:
 
     ``min_support`` (cells, ≥ 0): a placement whose ROI support agr̃ + dis is below it scores 0 (the
     support floor, :mod:`merger.search.measures`), so no optimum rests on a handful of cells; 0 keeps
-    the measures as the thesis defines them. ``align`` and merge cycles use :data:`ROI_MIN_SUPPORT`.
+    the measures as the thesis defines them. ``align`` and merge cycles use :data:`merger.settings.ROI_MIN_SUPPORT`.
 
-    ``roi_m``, ``measure`` and ``window_m`` default to the one default of each (:data:`DEFAULT_ROI_M`,
-    :data:`DEFAULT_MEASURE`, :data:`DEFAULT_WINDOW_M`), which ``merger.align`` and
+    ``roi_m``, ``measure`` and ``window_m`` default to the one default of each (:mod:`merger.settings`:
+    ``DEFAULT_ROI_M``, ``DEFAULT_MEASURE``, ``DEFAULT_WINDOW_M``), which ``merger.align`` and
     :class:`merger.team.params.MergeParams` share. ``refine`` (False) and ``min_support`` (0) are not the
     merger's settings but the search's question as the thesis states it: the grid answer of the plain
     measure, the problem every exactness check compares (spec = reference = fast, ``agree_search``).
     Sub-cell refinement and the support floor are policies of a merge, defaulted once in MergeParams
-    (``refine`` True, ``roi_min_support`` :data:`ROI_MIN_SUPPORT`); every merge builds its problem from
+    (``refine`` True, ``roi_min_support`` :data:`merger.settings.ROI_MIN_SUPPORT`); every merge builds its problem from
     those (:func:`merger.team.orders.problem_for`, ``merger.align``) and passes both explicitly.
     """
 
@@ -164,8 +162,8 @@ class Alignment:
     cells: tuple[int, int] = (0, 0)
     fine: tuple | None = field(default=None, repr=False)
     refined: bool = False
-    grid_theta_deg: float | None = None
-    grid_translation_m: tuple[float, float] | None = None
+    theta_grid_deg: float | None = None  # θ on the search grid (1° then 0.1°), before sub-cell refinement
+    translation_grid_m: tuple[float, float] | None = None  # t on the search grid (whole cells), likewise
     beyond_query: object | None = field(default=None, repr=False)  # a guard.BeyondQuery: answer_now()
     evidence: dict = field(default_factory=lambda: {"profile": "exact", "runner_up": "exact"})
 
@@ -174,20 +172,10 @@ class Alignment:
         object.__setattr__(self, "_beyond", _UNASKED)
         object.__setattr__(self, "runner_up", (float(self.runner_up[0]), float(self.runner_up[1])))
         object.__setattr__(self, "translation_m", (float(self.translation_m[0]), float(self.translation_m[1])))
-        if self.grid_theta_deg is None:
-            object.__setattr__(self, "grid_theta_deg", self.theta_deg)
-        if self.grid_translation_m is None:
-            object.__setattr__(self, "grid_translation_m", self.translation_m)
-
-    @property
-    def theta_grid_deg(self) -> float:
-        """θ on the search grid (1° then 0.1°): the thesis's answer, before sub-cell refinement."""
-        return self.grid_theta_deg
-
-    @property
-    def translation_grid_m(self) -> tuple[float, float]:
-        """t on the search grid (whole cells), before sub-cell refinement."""
-        return self.grid_translation_m
+        if self.theta_grid_deg is None:  # the grid answer is the answer until a refinement moves it
+            object.__setattr__(self, "theta_grid_deg", self.theta_deg)
+        if self.translation_grid_m is None:
+            object.__setattr__(self, "translation_grid_m", self.translation_m)
 
     @property
     def beyond(self) -> tuple[float, tuple[float, float], float] | None:
@@ -276,92 +264,3 @@ def fine_angles(coarse_deg: float) -> np.ndarray:
     """The refinement angles: ``coarse ± 1°`` in 0.1° steps (21 angles, the centre included)."""
     k = int(round(FINE_HALF_WIDTH_DEG / FINE_STEP_DEG))
     return coarse_deg + np.arange(-k, k + 1) * FINE_STEP_DEG
-
-
-class SettingError(ValueError):
-    """A setting its rule refuses. ``key`` names the setting as the caller knows it (``window_m``, a
-    scenario's ``merger.window_m``, a command line's ``--window``) and ``rest`` is the rule's words after it:
-    the message is ``key + rest``, one line saying what was expected (a caller passes its own name of the
-    setting as the rule's ``key``; :func:`circsim.config.validate.refused` reads ``rest``)."""
-
-    def __init__(self, key: str, rest: str) -> None:
-        super().__init__(key + rest)
-        self.key, self.rest = key, rest
-
-
-def _metres(value, key: str, rest: str) -> float:
-    """``value`` as a float: a real number (not a bool, not text), else SettingError ``key`` + ``rest``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SettingError(key, rest.format(got=repr(value)))
-    return float(value)
-
-
-def check_window(window_m, roi_m=None, key: str = "window_m", roi_key: str = "the ROI side") -> float:
-    """The translation window's rule, the one check of every ``window_m`` (RotationProblem, MergeParams,
-    the scenario loader and the command lines call it): a finite number of metres in [0, ``roi_m`` / 4]
-    (``roi_m`` None: only >= 0). Returns it as a float; SettingError naming ``key`` (and the ROI side as
-    ``roi_key``) and what was expected otherwise."""
-    top = None if roi_m is None else MAX_WINDOW_FRACTION * roi_m
-    expected = ("expected a number of metres >= 0" if top is None else
-                f"expected a number of metres in [0, {top:g}] (at most a quarter of {roi_key}, {roi_m:g} m)")
-    w = _metres(window_m, key, " must be a number of metres, got {got}: " + expected)
-    if not math.isfinite(w) or w < 0:
-        raise SettingError(key, f" must be a finite number >= 0, got {w:g}: {expected}")
-    if top is not None and w > top + 1e-12:
-        raise SettingError(key, f" = {w:g} m is more than a quarter of {roi_key} ({roi_m:g} m): expected at most "
-                                f"{top:g} m (or a larger ROI)")
-    return w
-
-
-def check_roi(roi_m, resolution: float | None = None, key: str = "roi_m", *, limits: bool = False,
-              cells_of: str = "") -> float:
-    """The ROI side's rule, the one check of every ``roi_m`` (RotationProblem, MergeParams, the scenario
-    loader and the command lines call it): a finite number of metres > 0 and, on a grid of ``resolution``,
-    at most :data:`MAX_ROI_CELLS` cells a side (the search's tables grow with its square). ``limits``: the
-    inputs' limits too (a scenario file, a command line: :mod:`merger.limits`), at most :data:`MAX_ROI_M`
-    and at least :data:`MIN_ROI_CELLS` cells a side. Returns it as a float; SettingError naming ``key``
-    (``cells_of``: what the resolution is, e.g. a map's path) and what was expected otherwise."""
-    span = f"in (0, {MAX_ROI_M:g}]" if limits else "> 0"
-    r = _metres(roi_m, key, f": expected a number of metres {span}, got {{got}}")
-    if not (math.isfinite(r) and r > 0) or (limits and r > MAX_ROI_M):
-        raise SettingError(key, f": expected a number {span}, got {r:g}")
-    if resolution is not None:
-        n, lo = r / resolution, (MIN_ROI_CELLS if limits else 0)
-        if not lo <= n <= MAX_ROI_CELLS:
-            top = min(MAX_ROI_M, MAX_ROI_CELLS * resolution) if limits else MAX_ROI_CELLS * resolution
-            side = f"{lo} to {MAX_ROI_CELLS}" if limits else f"at most {MAX_ROI_CELLS}"
-            of = f" of {cells_of}" if cells_of else ""
-            raise SettingError(key, f": expected a side of {side} cells{of} at {resolution:g} m per cell ("
-                                    f"{lo * resolution:g} to {top:g} m: a smaller ROI, or a coarser map), got "
-                                    f"{r:g} m ({n:.3g} cells)")
-    return r
-
-
-MEASURE_EXPECTED = "one of " + ", ".join(map(repr, MEASURES))  # the measure rule's words
-
-
-def check_measure(measure, key: str = "measure") -> str:
-    """The measure's rule, the one check of every ``measure`` (RotationProblem, MergeParams, the scenario
-    loader; the command lines offer the same names): one of :data:`merger.measures.MEASURES`. Returns it;
-    SettingError naming ``key`` otherwise."""
-    if not isinstance(measure, str) or measure not in MEASURES:
-        raise SettingError(key, f" must be {MEASURE_EXPECTED}, got {measure!r}")
-    return measure
-
-
-FLOOR_EXPECTED = "a whole number of cells >= 0 (below 2^40)"  # the floor rule's words
-
-
-def check_floor(floor, key: str = "min_support") -> int:
-    """The support floor's rule, the one check of every floor (RotationProblem's ``min_support``,
-    MergeParams's ``roi_min_support``, the scenario loader and the command lines): a whole number of cells
-    in [0, :data:`MAX_SUPPORT_FLOOR`). Returns it as an int; SettingError naming ``key`` otherwise."""
-    if isinstance(floor, bool) or not isinstance(floor, (int, np.integer)) or not 0 <= floor < MAX_SUPPORT_FLOOR:
-        raise SettingError(key, f" must be {FLOOR_EXPECTED}, got {floor!r}")
-    return int(floor)
-
-
-def check_roi_cells(roi_m: float, resolution: float) -> None:
-    """The ROI side in cells (``roi_m`` / ``resolution``) must be at most :data:`MAX_ROI_CELLS`
-    (:func:`check_roi` on a grid; kept for its callers)."""
-    check_roi(roi_m, resolution)

@@ -8,18 +8,18 @@ simulation bench (its scenarios' ``merger`` section is these settings plus the b
 :mod:`merger.team.orders` re-exports them.
 
 One default per setting: MergeParams's field default (``merger.align`` reads the same constants). The
-search's own settings take theirs from :mod:`merger.search.problem` (``DEFAULT_ROI_M``,
+search's own settings take theirs from :mod:`merger.settings` (``DEFAULT_ROI_M``,
 ``DEFAULT_WINDOW_M``, ``DEFAULT_MEASURE``, ``ROI_MIN_SUPPORT``), which
 :class:`~merger.search.RotationProblem` shares; the verification's from :mod:`.evidence` and the
 tracking's from :mod:`.track`.
 
 One rule per setting: :data:`RULES`, a rule ``rule(value, key) -> value`` per MergeParams field holding
 its range and its words (``rule.expected``, ``rule.why``); a refusal is a
-:class:`~merger.search.problem.SettingError` ``key`` + " must be <expected>, got <value>", one line naming
+:class:`~merger.settings.SettingError` ``key`` + " must be <expected>, got <value>", one line naming
 the setting as its caller knows it (``nu_min``, a scenario's ``merger.nu_min``, a command line's
 ``--nu-min``). MergeParams, the scenario loader (:data:`circsim.config.scenario.MERGER_CHECKS`) and the
 command lines (:func:`merger.cli.params_from`) call them; the search's settings' rules are
-:mod:`merger.search.problem`'s (``check_roi``, ``check_window``, ``check_measure``, ``check_floor``), and
+:mod:`merger.settings`'s (``check_roi``, ``check_window``, ``check_measure``, ``check_floor``), and
 the one rule between two settings, ``window_m`` ≤ ``roi_m`` / 4, is ``check_window`` with both.
 """
 
@@ -33,16 +33,15 @@ import numpy as np
 
 from ..grid import OccupancyGrid
 from ..search import SEARCH_METHODS
-from ..search.problem import (
+from ..search.problem import Alignment, angle_diff_deg
+from ..settings import (
     DEFAULT_MEASURE,
     DEFAULT_ROI_M,
     DEFAULT_WINDOW_M,
     FLOOR_EXPECTED,
     MEASURE_EXPECTED,
     ROI_MIN_SUPPORT,
-    Alignment,
     SettingError,
-    angle_diff_deg,
     check_floor,
     check_measure,
     check_roi,
@@ -149,7 +148,7 @@ class MergeParams:
 @dataclass(frozen=True)
 class Rule:
     """One setting's rule: ``rule(value, key)`` returns the value (a number as a float, a count as an int)
-    when ``accepts(value)``, else raises :class:`~merger.search.problem.SettingError` ``key`` + " must be
+    when ``accepts(value)``, else raises :class:`~merger.settings.SettingError` ``key`` + " must be
     <expected>, got <value>". ``expected`` is the range in words (a callable: words read when asked, e.g.
     the registered search methods); ``why`` where the range comes from (both printed by the scenario
     reference and the command line's help)."""
@@ -207,7 +206,7 @@ def optional(rule: Rule) -> Rule:
 
 
 def _of(check, words, why: str = "") -> Rule:
-    """A rule that is one of the search's own (``check(value, key)``, :mod:`merger.search.problem`)."""
+    """A rule that is one of the search's own (``check(value, key)``, :mod:`merger.settings`)."""
     def accepts(v) -> bool:
         try:
             check(v, "")

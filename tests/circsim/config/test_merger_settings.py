@@ -16,7 +16,7 @@ from circsim.config.scenario import (
     scenario_from_dict,
 )
 from circsim.sim import merge_params
-from merger.search.problem import DEFAULT_ROI_M, DEFAULT_WINDOW_M, SettingError
+from merger.settings import DEFAULT_ROI_M, DEFAULT_WINDOW_M, SettingError
 from merger.team import online, params
 
 

@@ -4,8 +4,9 @@ A region is angles[lo..hi] of a searcher's angle array × a box (a0, a1, b0, b1)
 (0..2K; cells = index − K). For random small problems (the adversarial kinds of tests.strategies: noise,
 a map against its own rotation, walls on the window's edge, near-empty maps, two resolutions; centers
 anywhere, on cell centres, on cell corners; every measure; support floor 0 and > 0; window 0 and 1–3
-cells) and random regions, each side of :func:`merger.search.bounds.bound_of` — the reference side
-(Lemma 3), the moving side (Lemma 3b) and both combined, as the branch and bound combines them — gives
+cells) and random regions, each side of the region bound (:func:`bound_of`) — the reference side
+(Lemma 3), the moving side (Lemma 3b) and both combined by the branch and bound's own
+:func:`merger.search.bounds.region_upper` — gives
 agr_hi ≥ every agr̃, dis_lo ≤ every dis and value_hi ≥ every exact value (:meth:`Searcher.exact`) of
 the region's elements. The polar bound (Lemma 6, rotation only) is at least the value at each whole
 degree; the measures' bound from count bounds (Lemma 4, ``upper_of``) is at least the value of every
@@ -25,7 +26,7 @@ from hypothesis import strategies as st
 
 from merger.measures import upper_of, value_of
 from merger.search import RotationProblem, fine_angles, searcher_for
-from merger.search.bounds import bound_of, polar_bound
+from merger.search.bounds import block_level, moving_bound, region_bound, region_upper, sum_ranges
 from tests.strategies import adversarial_problem, random_grid, random_point
 
 MEASURES = ("similarity", "birk_carpin", "ncc")
@@ -51,6 +52,30 @@ def problem(seed: int, measure: str, window: bool, floor: int, kind: str = "adve
     w = float(rng.choice([0.05, 0.1, 0.15])) if window else 0.0
     return RotationProblem(g, h, random_point(rng, g, mode), random_point(rng, h, mode),
                            float(rng.choice([0.6, 0.8, 1.0])), measure, w, min_support=floor)
+
+
+def bound_of(searcher, angles, lo: int, hi: int, box, side: str) -> tuple[int, int, float]:
+    """(agr_hi, dis_lo, value_hi) over the region angles[lo..hi] × ``box`` of ``searcher``'s problem:
+    ``side`` "reference" (:func:`region_bound`), "moving" (:func:`moving_bound`: one angle of a windowed
+    problem) or "both" (the counts of both sides combined as Lemma 3b does; the value the branch and
+    bound's own :func:`region_upper`)."""
+    t = searcher.p.tables
+    angles = np.asarray(angles, np.float64)
+    searcher.select(angles)
+    asum = searcher.angle_sums()
+    box = np.asarray(box, np.int64)
+    sx_lo, sx_hi, sy_lo, sy_hi = sum_ranges(t, asum, lo, hi, box)
+    agr, dis = 1 << 40, 0
+    pts = searcher.points_at(angles, lo)
+    if side in ("moving", "both"):
+        agr, dis = moving_bound(t, pts, box)
+    if side in ("reference", "both"):
+        half_rad = math.radians((angles[hi] - angles[lo]) / 2.0)
+        ra, rd = region_bound(t, (angles[lo] + angles[hi]) / 2.0, half_rad, box, block_level(t, box, half_rad))
+        agr, dis = min(agr, ra), dis + rd
+    if side == "both":
+        return int(agr), int(dis), float(region_upper(t, angles, asum, lo, hi, box, pts, -np.inf))
+    return int(agr), int(dis), float(upper_of(t.code, t.floor, agr, dis, sx_lo, sx_hi, sy_lo, sy_hi, t.n * t.n))
 
 
 def brute(s, angles, lo, hi, box, k):
@@ -108,7 +133,7 @@ def test_each_side_of_the_region_bound_is_at_least_the_brute_force_maximum(seed,
 def test_the_polar_bound_is_at_least_the_value_at_every_whole_degree(seed, measure, floor, kind):
     p = problem(seed, measure, False, floor, kind)
     s = searcher_for(p)
-    bound = polar_bound(s)
+    bound = s.polar_bounds()
     assert bound.shape == (360,)
     values = np.array([s.exact(float(d), 0, 0)[0] for d in range(360)])
     bad = np.flatnonzero(bound < values)

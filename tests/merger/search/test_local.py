@@ -30,7 +30,7 @@ def test_the_local_search_is_the_exhaustive_search_restricted_to_its_region(seed
     assert fast.counts == ref.counts
     # the answer lies in the region (its coarse angle there, the 0.1° step within 1° of it)
     _, ts = region(p, theta, cells)
-    assert abs(angle_diff_deg(fast.grid_theta_deg, round(theta) % 360)) <= LOCAL_HALF_DEG + FINE_HALF_WIDTH_DEG + 1e-9
+    assert abs(angle_diff_deg(fast.theta_grid_deg, round(theta) % 360)) <= LOCAL_HALF_DEG + FINE_HALF_WIDTH_DEG + 1e-9
     assert fast.cells in ts
 
 

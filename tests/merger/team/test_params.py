@@ -11,7 +11,7 @@ import pytest
 import merger
 from merger.grid import OccupancyGrid
 from merger.search import RotationProblem
-from merger.search.problem import DEFAULT_ROI_M, DEFAULT_WINDOW_M, SettingError, check_roi, check_window
+from merger.settings import DEFAULT_ROI_M, DEFAULT_WINDOW_M, SettingError, check_roi, check_window
 from merger.team import orders, params
 
 

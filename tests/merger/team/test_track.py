@@ -97,7 +97,7 @@ def _inject_flip(tm, strategy, who="Nevers"):
         tr = tm.tracker.tracks[key]
         al = tr.tracked.alignment
         wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 180.0) % 360.0,
-                                    grid_theta_deg=(al.theta_grid_deg + 180.0) % 360.0)
+                                    theta_grid_deg=(al.theta_grid_deg + 180.0) % 360.0)
         tr.tracked = dataclasses.replace(tr.tracked, alignment=wrong)
         tr.placement = (wrong.theta_deg, wrong.translation_m)
         return key

@@ -12,7 +12,7 @@ in frame ``robot``/map, x_robot = R(yaw)·x_map + (x, y) — the tf transform be
 Rows with the same ``estimate`` id (or, without that column, the same ``t_s`` and ``robot``) are one
 estimate. ``--merged-bag`` derives estimates from a merged ``/map`` topic (:mod:`circsim.locate`).
 
-Every estimate is judged as the run judges an accepted merge (:func:`circsim.metrics.judge_placement`):
+Every estimate is judged as the run judges an accepted merge (:func:`circsim.judge.judge_placement`):
 the alignment about the given centers, θ = yaw and t = p + R(θ)·c_j − c_i, against the start-frame truth
 θ*_ij, t*_ij within the run's tolerances. Per robot: ``first_merge_s`` (first correct estimate placing
 every teammate), ``first_pair_merge_s`` (first correct one placing any), ``estimates``, ``false_merges``
@@ -33,7 +33,8 @@ import yaml
 
 from merger.limits import MAX_YAML_BYTES, load_yaml, one_line, read_input
 
-from .metrics import GROSS_DEG, GROSS_M, JUDGE_EPS_DEG, JUDGE_EPS_M, judge_placement
+from .judge import JUDGE_EPS_DEG, JUDGE_EPS_M, judge_placement
+from .metrics import GROSS_DEG, GROSS_M
 
 TRUTH_FILE = "circsim_truth.yaml"  # the same names as circsim.record.bag (which needs rosbags to import)
 MERGES_FILE = "circsim_merges.csv"

@@ -8,7 +8,7 @@ a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everythi
 holds ``merger.min_maps`` maps (default 2: a partial team merges what it has); maps arriving in the same
 tick share one cycle. Each cycle is judged against ground truth: the rotation
 θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
-center error (:func:`truth_translation`, :func:`circsim.metrics.judge_placement`).
+center error (:func:`truth_translation`, :func:`circsim.judge.judge_placement`).
 
 With ``merger.share_hypotheses`` every robot also sends the alignment it holds with each map it sends,
 over a second network of the same latency, jitter and loss (its own random stream, so that sharing does
@@ -47,15 +47,8 @@ from merger.team.pool import threads as merger_threads
 
 from .config.scenario import Scenario, scenario_to_dict
 from .events import MergeCycle, Observer, RobotTick
-from .metrics import (
-    CONSENSUS_TOL_DEG,
-    JUDGE_EPS_DEG,
-    JUDGE_EPS_M,
-    MetricsObserver,
-    RobotMetrics,
-    RunResult,
-    judge_placement,
-)
+from .judge import JUDGE_EPS_DEG, JUDGE_EPS_M, judge_placement
+from .metrics import CONSENSUS_TOL_DEG, MetricsObserver, RobotMetrics, RunResult
 from .network import Network
 from .slam.models import Slam
 from .world.laser import scan as laser_scan

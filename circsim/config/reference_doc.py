@@ -1,8 +1,9 @@
 """The scenario reference (``docs/scenario-reference.md``), generated from the loader's own checks.
 
-Every key, its default and what the loader expects come from :mod:`circsim.config.scenario`'s validators and
-defaults, so the page cannot drift from the code: ``circsim scenarios --reference`` prints it and
-``tests/circsim/config/test_reference_doc.py`` checks that the file in docs/ is current (regenerate it with
+Every key, its default and what the loader expects come from the validators and defaults of
+:mod:`circsim.config.scenario` and :mod:`circsim.config.schema`, so the page cannot drift from the code:
+``circsim scenarios --reference`` prints it and ``tests/circsim/config/test_reference_doc.py`` checks
+that the file in docs/ is current (regenerate it with
 ``circsim scenarios --reference > docs/scenario-reference.md``).
 """
 
@@ -11,7 +12,8 @@ from __future__ import annotations
 import json
 
 from . import scenario as S
-from .validate import describe
+from . import schema as K
+from .validate import describe, integer, string
 
 HEADER = """# Scenario reference
 
@@ -125,21 +127,21 @@ def _rows(schema: dict, prefix: list[str], defaults, out: list) -> None:
 
 def _sections():
     """(section title, key prefix, schema) in the order of a scenario file."""
-    world = {k: v for k, v in S.WORLD_SCHEMA.items() if k != "room"}
+    world = {k: v for k, v in K.WORLD_SCHEMA.items() if k != "room"}
     return [
-        ("Top level", [], {"name": S.string, "description": S.string, "seed": S.integer(ge=0),
-                           "duration_s": S.POSITIVE, "dt_s": S.DT_S}),
+        ("Top level", [], {"name": string, "description": string, "seed": integer(ge=0),
+                           "duration_s": K.POSITIVE, "dt_s": K.DT_S}),
         ("world", ["world"], world),
-        ("world.room", ["world", "room"], S.ROOM_SCHEMA),
+        ("world.room", ["world", "room"], K.ROOM_SCHEMA),
         *[(f"world.objects[] with type: {kind}", ["world", "objects[]"], check)
-          for kind, check in S.OBJECT_SCHEMAS.items()],
-        ("robots", ["robots"], S.ROBOTS_SCHEMA),
-        ("laser", ["laser"], S.LASER_SCHEMA.schema),
-        ("slam", ["slam"], S.SLAM_SCHEMA.schema),
-        ("center_error", ["center_error"], {"magnitude_m": S.NON_NEGATIVE}),
-        ("network", ["network"], S.NETWORK_SCHEMA.schema),
+          for kind, check in K.OBJECT_SCHEMAS.items()],
+        ("robots", ["robots"], K.ROBOTS_SCHEMA),
+        ("laser", ["laser"], K.LASER_SCHEMA.schema),
+        ("slam", ["slam"], K.SLAM_SCHEMA.schema),
+        ("center_error", ["center_error"], {"magnitude_m": K.NON_NEGATIVE}),
+        ("network", ["network"], K.NETWORK_SCHEMA.schema),
         ("merger", ["merger"], S.MERGER_SCHEMA.schema),
-        ("output", ["output"], S.OUTPUT_SCHEMA.schema),
+        ("output", ["output"], K.OUTPUT_SCHEMA.schema),
     ]
 
 
@@ -166,7 +168,7 @@ def scenario_reference() -> str:
         parts.append(f"\n## {title}\n\n| key | default | expected |\n|---|---|---|\n")
         parts.append("".join(f"| `{k}` | {DERIVED_DEFAULTS.get(k) or _cell(d)} | {e} |\n" for k, d, e in rows))
     parts.append(CONSTRAINTS.format(cells=S.MAX_GRID_CELLS, roi=S.MAX_ROI_M, ticks=S.MAX_TICKS,
-                                    body=S.MIN_BODY_RADIUS_M, speed=S.MAX_SPEED_MPS))
+                                    body=K.MIN_BODY_RADIUS_M, speed=K.MAX_SPEED_MPS))
     d = S.MergerSettings()  # the merger's defaults (merger.team.params.MergeParams)
     parts.append(RESEARCH.format(drop=d.research_drop, change=d.research_change, period=d.research_period_s))
     return "".join(parts)

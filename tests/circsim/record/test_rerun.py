@@ -17,7 +17,8 @@ import pytest
 from circsim.cli import main
 from circsim.config.scenario import bundled_scenarios, load_scenario
 from circsim.events import MergeCycle, RobotTick
-from circsim.metrics import RobotMetrics, RunResult, judge_placement
+from circsim.judge import judge_placement
+from circsim.metrics import RobotMetrics, RunResult
 from circsim.record import rerun as record
 from circsim.record.entities import from_frame, known_window, overlay_fast, to_frame
 from circsim.record.rerun import RerunRecorder

@@ -25,10 +25,6 @@ from .algorithms import ALGORITHMS
 from .algorithms import DEFAULT as DEFAULT_ALGORITHM
 from .io.mapio import (
     CENTERS_FILE,
-    MAX_MAP_CELLS,
-    MAX_MAP_SIDE,
-    MIN_RESOLUTION_M,
-    MapFileError,
     centers_yaml,
     check_outputs,
     ensure_output_dir,
@@ -40,6 +36,7 @@ from .io.mapio import (
     overlay_png,
     write_files,
 )
+from .io.mapread import MAX_MAP_CELLS, MAX_MAP_SIDE, MIN_RESOLUTION_M, MapFileError
 from .limits import MAX_ROI_M
 from .measures import MEASURES
 from .search import SEARCH_METHODS
@@ -499,7 +496,7 @@ def report_merge(res, as_json: bool, extra: dict | None = None) -> None:
 def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
     """The merged map (OUT.yaml/.pgm) and its overlay (OUT_overlay.png) as {path: bytes}; none when no order
     passed verification and ``force`` is off."""
-    from .team.orders import fused_layers
+    from .team.frames import fused_layers
     from .team.superpose import fuse
 
     if res.accepted:

@@ -1,6 +1,6 @@
 """Property-based fuzzing of the user-facing readers (issue 12): generated bad input to the scenario loader,
 ``--set`` parsing and the ROS map reader. Whatever comes in, the only exception that may escape is the
-documented one-line error — :class:`circsim.config.scenario.ScenarioError` or :class:`merger.io.mapio.MapFileError` —
+documented one-line error — :class:`circsim.config.scenario.ScenarioError` or :class:`merger.io.mapread.MapFileError` —
 never a traceback of something else. Examples per test are in ``EXAMPLES`` (docs/troubleshooting.md says how many).
 """
 
@@ -23,7 +23,8 @@ from circsim.config.scenario import (
     scenario_to_dict,
 )
 from merger.grid import OccupancyGrid
-from merger.io.mapio import MapFileError, load_map
+from merger.io.mapio import load_map
+from merger.io.mapread import MapFileError
 from tests.paths import REPO
 
 EXAMPLES = {"scenario_data": 400, "scenario_text": 200, "set": 400, "map_yaml": 300, "map_image": 200}

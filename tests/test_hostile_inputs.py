@@ -24,7 +24,8 @@ import yaml
 
 from circsim.config.scenario import ScenarioError, bundled_scenarios, load_scenario, scenario_from_dict
 from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
-from merger.io.mapio import MAX_MAP_CELLS, MapFileError, check_outputs, load_map, map_files, save_map
+from merger.io.mapio import check_outputs, load_map, map_files, save_map
+from merger.io.mapread import MAX_MAP_CELLS, MapFileError
 from merger.limits import MAX_YAML_BYTES, InputLimitError, YamlLimitError, load_yaml, read_input
 from merger.search import MAX_ROI_CELLS, RotationProblem, search
 from merger.search.refine import REMAP_MAX_COLS, _remap_mean

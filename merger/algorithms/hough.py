@@ -89,7 +89,7 @@ def _rot(pts: np.ndarray, deg: float) -> np.ndarray:
 def align(ref, mov, params) -> PairAnswer:
     """Map ``mov`` onto map ``ref`` (:class:`merger.team.orders.MapInput`) by Carpin's method;
     ``params.min_support`` is the acceptance index's support floor."""
-    from ..team.orders import Warps
+    from ..team.frames import Warps
 
     p_ref, p_mov = _points(ref.grid), _points(mov.grid)
     if len(p_ref) < 2 or len(p_mov) < 2:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 import time
 
-from ..team.orders import MapInput, MergeParams, OrderResult, TeamMergeResult, fused_layers
+from ..team.frames import fused_layers
+from ..team.orders import MapInput, MergeParams, OrderResult, TeamMergeResult
 from ..team.superpose import fuse
 from .base import PairAnswer
 

@@ -4,9 +4,9 @@ library: no ROS installation needed (``pip install 'circsim[bag]'``).
 A map topic (``/r1/map``) is latched and republished as the map grows: the last message of each topic
 is the robot's newest map. The message's grid is already in the convention of :mod:`merger.grid` (int8,
 −1 unknown, 0..100 occupancy, row-major, row 0 at the origin); a cell is occupied above 65, free below
-19.6 (map_server's thresholds), unknown otherwise. A rotated origin is refused, as in :mod:`merger.io.mapio`.
+19.6 (map_server's thresholds), unknown otherwise. A rotated origin is refused, as in :mod:`merger.io.mapread`.
 
-Every problem raises :class:`merger.io.mapio.MapFileError` naming the bag and the topic.
+Every problem raises :class:`merger.io.mapread.MapFileError` naming the bag and the topic.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import OccupancyGrid
-from .mapio import MapFileError
+from .mapread import MapFileError
 
 MSGTYPE = "nav_msgs/msg/OccupancyGrid"
 MAX_CELLS = 100_000_000

@@ -2,10 +2,11 @@
 
 * :mod:`.orders` — the thesis's procedure: every merge order, each verified, the best accepted one chosen
   (``merge_team``, ``MergeParams``, ``TeamMergeResult``);
-* :mod:`.tree` — the alternative for large teams: verified pairs along a maximum spanning tree;
-* :mod:`.verify` (ν on the whole maps), :mod:`.evidence` (the contrast rule for real maps),
-  :mod:`.ambiguity` (a runner-up within the margin is weighed on the whole maps), :mod:`.superpose`
-  (the merged map);
+* :mod:`.tree` — the alternative for large teams: verified pairs along a maximum spanning tree (the
+  graph's arithmetic: :mod:`.posegraph`);
+* :mod:`.frames` (placements between frames, maps placed on a frame), :mod:`.verify` (ν on the whole
+  maps), :mod:`.evidence` (the contrast rule for real maps), :mod:`.ambiguity` (a runner-up within the
+  margin is weighed on the whole maps), :mod:`.superpose` (the merged map);
 * :mod:`.online` (``TeamMerger``: maps arriving over time), :mod:`.shared` (hypotheses shared between
   robots), :mod:`.memo` (searches shared by content key), :mod:`.pool` (a cycle's searches on threads).
 

@@ -17,16 +17,9 @@ from __future__ import annotations
 import time
 
 from ..grid import OccupancyGrid
+from .frames import Warps, compose, place_on_frame0
 from .memo import Memo
-from .orders import (
-    Warps,
-    _order_result,
-    align_order,
-    compose,
-    merge_team,
-    place_on_frame0,
-    refine_chosen,
-)
+from .orders import _order_result, align_order, merge_team, refine_chosen
 from .params import MapInput, MergeParams, TeamMergeResult
 from .superpose import fuse
 from .track import Tracker, decide

@@ -2,6 +2,8 @@
 
 The team's parameter set and value types (MergeParams, MapInput, OrderResult, TeamMergeResult, Placement)
 live in :mod:`merger.team.params`; they are re-exported here, where callers have always imported them.
+Placing maps (:func:`~merger.team.frames.compose`, :class:`~merger.team.frames.Warps`,
+:func:`~merger.team.frames.place_on_frame0`) is :mod:`merger.team.frames`.
 
 For three maps the thesis evaluates three orders (3.10): a pair (1,2), (1,3) or (2,3) is aligned first,
 then the third map is aligned onto the superposition of the pair. Here an *order* is a sequence of map
@@ -24,19 +26,18 @@ import math
 import time
 from dataclasses import replace
 
-import numpy as np
-
 from ..grid import OccupancyGrid
 from ..search import Alignment, RotationProblem, angle_diff_deg, search, wrap_deg
 from ..search.local import local_search
-from ..transform import canvas, footprint, overlap, paste, rotation, warp_grid
+from ..transform import canvas, overlap, paste
 from .ambiguity import PairAmbiguity, resolve
 from .evidence import refine
+from .frames import Warps, compose, place_on_frame0, shifted
 from .memo import Memo, map_key
 from .params import ORIGIN, MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .superpose import fuse, superpose
-from .verify import Verification, check_pair, no_evidence, pairwise, refine_limit_m, refined_placement, verify
+from .verify import Verification, no_evidence, pairwise, refine_limit_m, refined_placement, verify
 
 AMBIGUOUS_DEG = 10.0  # the ambiguity rule: another accepted order places a map more than this apart in angle
 AMBIGUOUS_M = 0.2  # ... or more than this apart in translation
@@ -60,85 +61,6 @@ def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
             params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin,
             params.roi_min_support)
-
-
-def compose(onto_first: dict[int, Placement], first: int, base: int) -> dict[int, Placement]:
-    """Placements onto the first map's frame → onto map ``base``'s frame.
-
-    With x_f = c_f + t_fk + R(θ_fk)(x_k − c_k) for every k: θ_bk = θ_fk − θ_fb and
-    t_bk = R(−θ_fb)(t_fk − t_fb)."""
-    th_b, t_b = onto_first[base]
-    r = rotation(-th_b)
-    out = {}
-    for k, (th, t) in onto_first.items():
-        d = r @ (np.asarray(t, np.float64) - np.asarray(t_b, np.float64))
-        out[k] = (wrap_deg(th - th_b), (float(d[0]), float(d[1])))
-    out[base] = (0.0, ORIGIN)
-    return out
-
-
-def shifted(center, t) -> tuple[float, float]:
-    """c + t (the point where a placed map's center lands)."""
-    if t[0] == 0.0 and t[1] == 0.0:
-        return (float(center[0]), float(center[1]))
-    return (float(center[0]) + float(t[0]), float(center[1]) + float(t[1]))
-
-
-class Warps:
-    """The maps of one merge cycle rotated onto another map's cell lattice, each warp computed once.
-
-    A warp covers only the rotated map's footprint (:func:`merger.transform.footprint`); every cell
-    outside it is unknown. One warp therefore serves every canvas on that lattice (pasting it is exact),
-    and a pair's whole-map ω̃ only needs the cells where the two footprints overlap (unknown cells count
-    in neither agr̃ nor dis). Orders that share a rotation share its warp and its pair checks.
-    """
-
-    def __init__(self, maps: list[MapInput]) -> None:
-        self.maps = maps
-        self._known: dict[int, OccupancyGrid] = {}
-        self._warps: dict[tuple[int, int, float], OccupancyGrid] = {}
-        self._checks: dict[tuple, Verification] = {}
-
-    def known(self, k: int) -> OccupancyGrid:
-        """Map ``k``'s known cells (:meth:`OccupancyGrid.known_part`): what is warped and placed."""
-        if k not in self._known:
-            self._known[k] = self.maps[k].grid.known_part()
-        return self._known[k]
-
-    def placed(self, k: int, theta: float, t=ORIGIN) -> tuple[OccupancyGrid, float, tuple[float, float]]:
-        """``(grid, θ, center)`` of map ``k`` for :func:`merger.transform.canvas` — with a translation
-        t, the center is moved back by R(−θ)t so that the canvas's center c_f maps it to c_f + t."""
-        return self.known(k), theta, _source_center(self.maps[k].center, theta, t)
-
-    def get(self, frame: int, k: int, theta: float, t=ORIGIN) -> OccupancyGrid:
-        """Map ``k`` placed by (θ, t) onto map ``frame``'s lattice: x_f = c_f + t + R(θ)(x_k − c_k)."""
-        t = (float(t[0]), float(t[1]))
-        if k == frame and theta == 0.0 and t == ORIGIN:
-            return self.maps[k].grid
-        key = (frame, k, theta, t)
-        if key not in self._warps:
-            base, m, g = self.maps[frame], self.maps[k], self.known(k)
-            target = shifted(base.center, t)
-            fp = footprint(base.grid, g, theta, m.center, target)
-            self._warps[key] = warp_grid(g, theta, m.center, target, fp)
-        return self._warps[key]
-
-    def check(self, i: int, pi: Placement, j: int, pj: Placement, params: MergeParams) -> Verification:
-        """ν_ij of maps i and j placed on map 0's frame (whole maps, with the acceptance rule)."""
-        key = (i, pi[0], tuple(pi[1]), j, pj[0], tuple(pj[1]))
-        if key not in self._checks:
-            label = f"{self.maps[i].name}|{self.maps[j].name}"
-            self._checks[key] = check_pair(self.get(0, i, *pi), self.get(0, j, *pj),
-                                           shifted(self.maps[0].center, pj[1]), params, label)
-        return self._checks[key]
-
-
-def _source_center(center, theta: float, t) -> tuple[float, float]:
-    """c − R(−θ)t: with it, c_f + R(θ)(x − (c − R(−θ)t)) = c_f + t + R(θ)(x − c)."""
-    if t[0] == 0.0 and t[1] == 0.0:
-        return (float(center[0]), float(center[1]))
-    d = rotation(-theta) @ np.asarray(t, np.float64)
-    return (float(center[0]) - float(d[0]), float(center[1]) - float(d[1]))
 
 
 def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:
@@ -212,16 +134,6 @@ def _step_check(onto: OccupancyGrid, warps: Warps, frame: int, k: int, params: M
         return verify(*overlap(onto, warps.get(frame, k, al.theta_deg, al.translation_m)),
                       nu_min=params.nu_min, min_support=params.min_support, label=label)
     return check
-
-
-def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
-                    warps: Warps | None = None) -> list[OccupancyGrid]:
-    """All maps resampled onto one canvas in map 0's frame: map 0's grid and every other map's known
-    cells (:meth:`Warps.known`), each placed by its (θ, t)."""
-    warps = Warps(maps) if warps is None else warps
-    base = maps[0]
-    cv = canvas(base.grid, [warps.placed(i, *place0[i]) for i in range(1, len(maps))], base.center)
-    return [paste(base.grid, cv)] + [paste(warps.get(0, i, *place0[i]), cv) for i in range(1, len(maps))]
 
 
 def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
@@ -420,13 +332,3 @@ def _ambiguity(results: list[OrderResult], accepted: list[int], best: int, margi
                             f"{o.nu_sum / npairs:.3f} (margin {margin:g})")
                 break
     return ""
-
-
-def fused_layers(maps: list[MapInput], theta_deg: dict[str, float],
-                 translation_m: dict[str, tuple[float, float]] | None = None) -> list[OccupancyGrid]:
-    """The maps placed on map 0's frame with given rotations and translations (e.g. a kept earlier
-    alignment; translations default to none)."""
-    tr = translation_m or {}
-    return place_on_frame0(maps, {i: (theta_deg[m.name], tuple(tr.get(m.name, ORIGIN)))
-                                  for i, m in enumerate(maps)})
-

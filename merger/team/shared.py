@@ -3,7 +3,7 @@
 In the thesis every robot computes alone, and robots may hold different global maps. Here a robot may
 broadcast the alignment it holds (:class:`HypothesisMessage`: its placements of every map onto its own
 frame, with the ν it verified). A receiver expresses the placements in its own frame (:func:`reframe`,
-:func:`merger.team.orders.compose`), verifies them on the maps *it* holds with the whole-map rule of
+:func:`merger.team.frames.compose`), verifies them on the maps *it* holds with the whole-map rule of
 :mod:`merger.team.orders` (every pair of placed maps: ν ≥ ν_min and support ≥ min_support,
 :func:`verify_placements`), verifies the alignment it holds on the same maps, and adopts the received one
 only when it passes and its Σν there is higher (:func:`adopt`). Σν over the pairs of placed maps: on the
@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 
 from ..grid import OccupancyGrid
-from .orders import Warps, compose, place_on_frame0
+from .frames import Warps, compose, place_on_frame0
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .superpose import fuse
 from .verify import pairwise

@@ -16,7 +16,8 @@ from merger.cli import OPTIONS, UsageError, build_parser, join_negative_xy, main
 from merger.io.mapio import save_map
 from merger.search import angle_diff_deg
 from merger.synthetic import arc_viewpoints, partial_view_of_grid, robot_pose_on_circle, world_to_frame
-from merger.team.orders import MapInput, MergeParams, fused_layers
+from merger.team.frames import fused_layers
+from merger.team.orders import MapInput, MergeParams
 from merger.team.params import RULES
 from merger.team.superpose import fuse
 from merger.transform import rotation

@@ -9,7 +9,7 @@ import pytest
 
 from merger import MapInput, MergeParams, merge_team
 from merger.search import angle_diff_deg
-from merger.team.orders import Warps, fused_layers, shifted
+from merger.team.frames import Warps, fused_layers, shifted
 from merger.team.verify import check_pair
 from merger.transform import paste
 from tests.realdata import (

@@ -12,7 +12,7 @@ import pytest
 from merger.cli import main
 from merger.grid import OccupancyGrid
 from merger.io.bagio import grid_from_message, read_bag_maps, topic_names
-from merger.io.mapio import MapFileError
+from merger.io.mapread import MapFileError
 from merger.search import angle_diff_deg
 from tests.strategies import three_views
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
-from merger.io.mapio import MapFileError, load_map, save_map, save_overlay
+from merger.io.mapio import load_map, save_map, save_overlay
+from merger.io.mapread import MapFileError
 from tests.paths import REAL_MAP
 
 REAL = REAL_MAP
@@ -169,7 +170,8 @@ def test_write_files_all_or_none(tmp_path):
 
 
 def _check_often(folder: str, n: int) -> int:
-    from merger.io.mapio import MapFileError, ensure_output_dir
+    from merger.io.mapio import ensure_output_dir
+    from merger.io.mapread import MapFileError
 
     failed = 0
     for _ in range(n):

@@ -11,7 +11,8 @@ import pytest
 from merger.search import angle_diff_deg
 from merger.synthetic import arc_viewpoints, partial_view, room_scene, window_case
 from merger.team.ambiguity import verdict
-from merger.team.orders import MapInput, MergeParams, Warps, merge_team
+from merger.team.frames import Warps
+from merger.team.orders import MapInput, MergeParams, merge_team
 from merger.team.tree import merge_tree, pair_result
 
 P = MergeParams(roi_m=8.0, window_m=0.5)  # margin 0.05 (the default with a window)

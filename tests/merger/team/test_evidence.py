@@ -14,7 +14,8 @@ from merger import MapInput, MergeParams, merge_team
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from merger.search import angle_diff_deg
 from merger.team.evidence import AGREE_DEG, CONTRAST_MIN, contrast
-from merger.team.orders import Warps, refine_chosen, shifted
+from merger.team.frames import Warps, shifted
+from merger.team.orders import refine_chosen
 from merger.team.verify import check_pair, verify_contrast
 from tests.strategies import three_views
 

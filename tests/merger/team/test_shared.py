@@ -10,8 +10,9 @@ import pytest
 from circsim.events import MergeCycle
 from circsim.metrics import MetricsObserver, RobotMetrics, RunResult, in_consensus, spread
 from merger.search import angle_diff_deg
+from merger.team.frames import compose
 from merger.team.online import MapMessage, TeamMerger
-from merger.team.orders import MergeParams, compose
+from merger.team.orders import MergeParams
 from merger.team.shared import HypothesisMessage, reframe
 from tests.strategies import three_views
 

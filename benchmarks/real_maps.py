@@ -39,11 +39,8 @@ from merger import MapInput, MergeParams, merge_team  # noqa: E402
 from merger.grid import FREE_S, OCCUPIED_S  # noqa: E402
 from merger.search import angle_diff_deg  # noqa: E402
 from merger.team.evidence import AGREE_DEG, CONTRAST_MIN, contrast  # noqa: E402
-from merger.team.orders import (  # noqa: E402
-    Warps,  # noqa: E402
-    shifted,
-    whole_map_guard,
-)
+from merger.team.frames import Warps, shifted  # noqa: E402
+from merger.team.orders import whole_map_guard  # noqa: E402
 from merger.team.verify import refined_placement  # noqa: E402
 from merger.transform import overlap, rotation  # noqa: E402
 from tests.realdata import (  # noqa: E402

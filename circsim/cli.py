@@ -159,7 +159,8 @@ def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
 
 
 def cmd_run(args) -> int:
-    from merger.io.mapio import MapFileError, ensure_output_dir, write_files
+    from merger.io.mapio import ensure_output_dir, write_files
+    from merger.io.mapread import MapFileError
 
     from .sim import Simulation
 

@@ -135,7 +135,7 @@ def merged_estimates(truth: Truth, run: Path, merged_bag: Path, topic: str = "/m
                      match_min: float = MATCH_MIN, progress=None) -> list[Estimate]:
     """Estimates from the merged map topic of ``merged_bag``, judged on the robots' maps of the run's bag."""
     from merger.io.bagio import read_bag_map_series
-    from merger.io.mapio import MapFileError
+    from merger.io.mapread import MapFileError
 
     try:
         robot_maps = read_bag_map_series(run, [truth.map_topics[n] for n in truth.robots])

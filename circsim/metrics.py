@@ -15,7 +15,7 @@
   the cycle costs a robot computing alone.
 * ``realtime_factor`` — simulated seconds per wall second of the run.
 * ``consensus_s`` — simulated seconds to the first time every robot holds the same global alignment: each
-  holds a placement of every map, and expressed in one frame (:func:`merger.team.orders.compose`) all of them
+  holds a placement of every map, and expressed in one frame (:func:`merger.team.frames.compose`) all of them
   agree within ``CONSENSUS_TOL_DEG`` (0.1°) and one cell (the SLAM grid's resolution); None if never.
   ``consensus_final``: whether they still do at the end; ``consensus_held_s``: for how many simulated
   seconds in all they did. With shared hypotheses
@@ -51,7 +51,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from merger.search import angle_diff_deg
-from merger.team.orders import Placement, compose
+from merger.team.frames import compose
+from merger.team.params import Placement
 from merger.team.track import jump_summary, placement_jump
 
 from .events import MergeCycle, Observer

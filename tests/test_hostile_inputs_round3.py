@@ -62,7 +62,7 @@ def test_sweep_tables_on_a_full_disk_name_the_file(tmp_path):
 import resource, signal, sys
 from pathlib import Path
 from circsim.experiments.tables import write_tables
-from merger.io.mapio import MapFileError
+from merger.io.mapread import MapFileError
 rows = [{f"col{c}": c * 0.5 for c in range(30)}]  # CSV ~0.3 kB, parquet ~9 kB (its metadata)
 out = Path(sys.argv[1])
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

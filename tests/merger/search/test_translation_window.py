@@ -47,7 +47,8 @@ from merger.synthetic import (
     window_case,
     world_to_frame,
 )
-from merger.team.orders import MapInput, MergeParams, merge_team, place_on_frame0
+from merger.team.frames import place_on_frame0
+from merger.team.orders import MapInput, MergeParams, merge_team
 from merger.team.verify import verify
 from merger.transform import rotation
 from tests.paths import REAL_MAP

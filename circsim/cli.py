@@ -121,47 +121,11 @@ def summary(res) -> str:
     return "\n".join(lines)
 
 
-def _writable(path: Path, what: str) -> None:
-    """Fail before the run, in one line, if ``path`` cannot be written (its folder is made; the file itself
-    is not created: a run that stops early leaves no empty file)."""
-    import os
-    import tempfile
-
-    if path.is_dir():
-        raise UsageError(f"{path}: cannot write the {what} here (a folder has that name)")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        raise UsageError(f"{path}: cannot write the {what} here ({e.strerror or e})") from None
-
-
-def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps) -> None:
-    """Before the run: no output may be the scenario file, another output (``--rrd X --json X``, a
-    ``--json`` inside ``--save-maps`` named like a robot's map), a folder, a link or a special file."""
-    from merger.io.mapio import CENTERS_FILE, check_outputs, map_paths
-
-    from .record.savemaps import file_stem
-
-    outputs = []
-    if rrd:
-        outputs.append((rrd, "--rrd"))
-    if json_out:
-        outputs.append((json_out, "--json"))
-    if save_maps:
-        for i, n in enumerate(sc.robots.names):
-            outputs += [(p, "--save-maps") for p in map_paths(save_maps / f"{file_stem(n, i)}.yaml")]
-        outputs.append((save_maps / CENTERS_FILE, "--save-maps"))
-    p = Path(scenario_arg)
-    check_outputs(outputs, {p: "scenario"} if p.is_file() else {})
-
-
 def cmd_run(args) -> int:
-    from merger.io.mapio import ensure_output_dir, write_files
+    from merger.io.mapio import write_files
     from merger.io.mapread import MapFileError
 
+    from .outputs import check_bag_output, check_maps_folder, check_run_outputs, make_folders, writable
     from .sim import Simulation
 
     sc = load_with_overrides(args.scenario, args.seed, args.set)
@@ -171,17 +135,17 @@ def cmd_run(args) -> int:
                          "(with --out DIR --save-maps for the maps); `circsim run` drives the robots online")
     rrd = args.rrd or (Path(sc.output.rrd) if sc.output.rrd else None)
     json_out = args.json or (Path(sc.output.json) if sc.output.json else None)
+    # every check before the first tick, and none creates anything (issue 46): then the folders are made
     if rrd:
-        _writable(rrd, "recording")
+        writable(rrd, "recording")
     if json_out:
-        _writable(json_out, "metrics JSON")
-    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps)
+        writable(json_out, "metrics JSON")
+    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps, args.bag)
     if args.bag:
-        from .record.bag import check_bag_output
-
         check_bag_output(args.bag)
     if args.save_maps:
-        ensure_output_dir(args.save_maps, "--save-maps")
+        check_maps_folder(args.save_maps)
+    make_folders(args.save_maps, rrd.parent if rrd else None)
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
     from .record.savemaps import MapSaver
 

@@ -1,8 +1,11 @@
 """``circsim run --bag OUT``: the run as a ROS 2 bag (MCAP), for any map merger to be judged on.
 
 Written with the pure-Python ``rosbags`` library (``pip install -e ".[ros]"``; no ROS install needed).
-The bag is a folder ``OUT/`` (``metadata.yaml`` + ``OUT.mcap``), written under a temporary name and
-renamed when the run ends (Ctrl-C included): a reader never sees half a bag. Topics, per robot ``r``
+The bag is a folder ``OUT/`` (``metadata.yaml`` + ``OUT.mcap``), written inside a locked temporary folder
+``.OUT.XXXX.part.bag/`` beside it and renamed when the run ends (Ctrl-C included): a reader never sees half
+a bag, and the next run of the same ``OUT`` deletes the parts a killed run left (:mod:`circsim.record.parts`).
+A bag that cannot be written (a full disk) is dropped at the first failed write with one line in
+:attr:`BagRecorder.write_error`; the run goes on and its other outputs are kept. Topics, per robot ``r``
 (stamps are simulated seconds from 0; the bag's clock is the same)::
 
     /r/map        nav_msgs/msg/OccupancyGrid   frame r/map, at every publication (transient-local QoS)
@@ -30,7 +33,6 @@ import math
 import os
 import re
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +91,20 @@ class BagRecorder(Observer):
         self._last_est: dict[str, tuple[float, tuple]] = {}
         self.sim = None
         self.counts: dict[str, int] = {}
-        self.write_error: str | None = None
+        self.write_error: str | None = None  # why the bag was dropped (one line naming it), if so
+        self._lock: int | None = None  # the part folder's lock (circsim.record.parts)
+
+    def _guard(self, hook, *args) -> None:
+        """Run ``hook`` unless the bag was dropped; an OSError (a full disk, a quota) drops the bag: the
+        writer is aborted, its part deleted and :attr:`write_error` names the bag; the run goes on."""
+        if self.write_error is not None:
+            return
+        try:
+            hook(*args)
+        except OSError as e:
+            self.write_error = (f"--bag {self.path}: cannot write the bag ({e.strerror or e}); nothing of it "
+                                "was kept")
+            self.abort()
 
     # --- message builders -------------------------------------------------------------------
     def _header(self, t: float, frame: str):
@@ -114,11 +129,30 @@ class BagRecorder(Observer):
 
     # --- observer hooks ---------------------------------------------------------------------
     def on_start(self, sim) -> None:
+        self._guard(self._start, sim)
+
+    def on_tick(self, t, step, ticks) -> None:
+        self._guard(self._tick, t, step, ticks)
+
+    def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
+        self._guard(self._map, t, robot, grid)
+
+    def on_merge_cycle(self, cycle) -> None:
+        self._guard(self._merges, cycle)
+
+    def on_end(self, result) -> None:
+        self._guard(self._end)
+
+    def _start(self, sim) -> None:
         from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
         from rosbags.rosbag2 import StoragePlugin, Writer
 
+        from .parts import claim_bag_part
+
         self.sim = sim
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=self.path.parent)) / self.path.name
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        part, self._lock = claim_bag_part(self.path)
+        self.tmp = part / self.path.name
         self.writer = Writer(self.tmp, version=9, storage_plugin=StoragePlugin.MCAP)
         self.writer.open()
         zero = QosTime(sec=0, nsec=0)
@@ -140,7 +174,7 @@ class BagRecorder(Observer):
         self._write("/tf_static", 0.0, self.T["tf2_msgs/msg/TFMessage"](
             transforms=[self._tf(0.0, f"{n}/base_link", f"{n}/laser", 0.0, 0.0, 0.0) for n in self.ns.values()]))
 
-    def on_tick(self, t, step, ticks) -> None:
+    def _tick(self, t, step, ticks) -> None:
         T = self.T
         tfs = []
         for k in ticks:
@@ -178,7 +212,7 @@ class BagRecorder(Observer):
         return T["nav_msgs/msg/Odometry"](header=self._header(t, f"{n}/odom"), child_frame_id=f"{n}/base_link",
                                           pose=pose, twist=twist)
 
-    def on_map_published(self, t, robot, grid, center_given, center_true) -> None:
+    def _map(self, t, robot, grid) -> None:
         T = self.T
         Time = T["builtin_interfaces/msg/Time"]
         ns = _stamp_ns(t)
@@ -193,7 +227,7 @@ class BagRecorder(Observer):
             header=self._header(t, f"{n}/map"), info=info,
             data=np.ascontiguousarray(grid.to_ros().ravel(), dtype=np.int8)))
 
-    def on_merge_cycle(self, cycle) -> None:
+    def _merges(self, cycle) -> None:
         """Every accepted merge (or adopted hypothesis) as CSV rows: the pose of each teammate's map frame in
         the merging robot's, written with ``repr`` (exact floats) so that scoring reproduces the run."""
         if not cycle.result.accepted:
@@ -239,46 +273,46 @@ class BagRecorder(Observer):
                         "R(theta)(x_j - c_j), as circsim's metrics judge a merge"}
 
     def abort(self) -> None:
-        """The run failed before its end: no bag, and no temporary folder left behind."""
+        """The run failed before its end, or the bag could not be written: no bag, and no temporary folder
+        left behind."""
+        from .parts import release
+
         if self.writer is not None:
-            self.writer.abort()
+            writer, self.writer = self.writer, None
+            try:
+                writer.abort()
+            except OSError:
+                pass
         if self.tmp is not None:
             shutil.rmtree(self.tmp.parent, ignore_errors=True)
+            self.tmp = None
+        release(self._lock)
+        self._lock = None
 
-    def on_end(self, result) -> None:
+    def _end(self) -> None:
         import yaml
 
-        try:
-            self.writer.close()
-            (self.tmp / TRUTH_FILE).write_text(yaml.safe_dump(self.truth(), sort_keys=False, width=110))
-            buf = io.StringIO()
-            w = csv.writer(buf, lineterminator="\n")
-            w.writerow(CSV_HEADER.split(","))
-            w.writerows(self.merges)
-            (self.tmp / MERGES_FILE).write_text(buf.getvalue())
-            if self.path.exists():
-                raise FileExistsError(f"{self.path}: appeared during the run; the bag is left in {self.tmp}")
-            os.replace(self.tmp, self.path)
-            shutil.rmtree(self.tmp.parent, ignore_errors=True)
-        except OSError as e:
-            self.write_error = f"--bag {self.path}: cannot write the bag ({e})"
+        from .parts import release
 
+        self.writer.close()
+        self.writer = None
+        (self.tmp / TRUTH_FILE).write_text(yaml.safe_dump(self.truth(), sort_keys=False, width=110))
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(CSV_HEADER.split(","))
+        w.writerows(self.merges)
+        (self.tmp / MERGES_FILE).write_text(buf.getvalue())
+        if self.path.exists() or self.path.is_symlink():  # another process wrote it meanwhile: keep both
+            kept = self.tmp.parent.with_name(self.tmp.parent.name.removesuffix(".part.bag") + ".kept")
+            os.replace(self.tmp.parent, kept)
+            release(self._lock)
+            self.tmp, self._lock = None, None
+            self.write_error = (f"--bag {self.path}: appeared during the run (another process wrote it); this "
+                                f"run's bag is kept in {kept / self.path.name}")
+            return
+        os.replace(self.tmp, self.path)
+        shutil.rmtree(self.tmp.parent, ignore_errors=True)
+        self.tmp = None
+        release(self._lock)
+        self._lock = None
 
-def check_bag_output(path: Path) -> None:
-    """Before the run, in one line (UsageError): rosbags is installed, ``path`` does not exist (a bag is a
-    folder; circsim never deletes one) and its folder is writable."""
-    from ..commands import UsageError
-
-    hint = rosbags_missing()
-    if hint:
-        raise UsageError(hint)
-    path = Path(path)
-    if path.exists() or path.is_symlink():
-        raise UsageError(f"--bag {path}: already exists (a ROS 2 bag is a folder; circsim does not overwrite "
-                         "one): name a new path")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        probe = tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent)
-        os.rmdir(probe)
-    except OSError as e:
-        raise UsageError(f"--bag {path}: cannot write the bag here ({e.strerror or e})") from None

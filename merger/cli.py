@@ -574,6 +574,10 @@ def cmd_merge(args) -> int:
     y, img = map_paths(out)
     inputs = {args.bag: "--bag"} if args.bag else {q: "map" for p in args.maps for q in map_input_paths(p)}
     check_outputs({y: "-o", img: "-o", overlay_path(y): "-o"}, inputs)  # before the maps are decoded
+    if args.bag:
+        from .io.bagio import check_outputs_outside
+
+        check_outputs_outside(args.bag, {y: "-o", img: "-o", overlay_path(y): "-o"})
     maps, notes = (bag_inputs(args.bag, args.topics, args.maps, args.center, params.roi_m) if args.bag
                    else merge_inputs(args.maps, args.center, params.roi_m))
     ensure_output_dir(out.parent, "-o")

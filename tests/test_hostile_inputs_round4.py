@@ -94,3 +94,94 @@ def test_item4_a_killed_run_s_bag_part_is_removed_by_the_next_run(tmp_path):
     finally:
         os.close(fd)
     assert remove_stale_bag_parts(target) == [live] and not live.exists()  # that run ended: its part goes too
+
+
+@needs_rosbags
+def test_item2_an_output_inside_the_input_bag_is_refused_before_work(tmp_path):
+    """`merger merge --bag B ... -o B/metadata` replaced the bag's metadata.yaml (exit 0; the bag unreadable)."""
+    import numpy as np
+
+    from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+    from tests.merger.io.test_bagio import write_bag
+
+    g = OccupancyGrid(np.full((60, 60), FREE_S, np.uint8), 0.05, (-1.5, -1.5))
+    g.states[10:12, 5:50] = OCCUPIED_S
+    g.states[20:50, 40:42] = OCCUPIED_S
+    b = tmp_path / "B"
+    write_bag(b, {"/a/map": [g], "/b/map": [g]})
+    before = {p.name: p.read_bytes() for p in b.iterdir()}
+    for out in [b / "metadata", b / "sub" / "m"]:
+        code, stdout, err, _ = _cli(tmp_path, "merger", "merge", "--bag", b, "--topics", "/a/map,/b/map",
+                                    "--center", "0,0", "--center", "0,0", "-o", out, timeout_s=60)
+        assert code == 2 and stdout == "", err
+        one_line_error(err, "merger", "-o", f"inside the input bag {b}")
+    assert {p.name: p.read_bytes() for p in b.iterdir()} == before
+
+
+def _grid_msg(**info):
+    import numpy as np
+    from rosbags.typesys import Stores, get_typestore
+
+    from merger.grid import OccupancyGrid
+    from tests.merger.io.test_bagio import _msg
+
+    m = _msg(get_typestore(Stores.ROS2_HUMBLE), OccupancyGrid(np.zeros((3, 4), np.uint8), 0.05, (1.0, -2.0)))
+    for k, v in info.items():
+        if k == "data":
+            m.data = np.asarray(v, np.int8)
+        elif k == "x":
+            m.info.origin.position.x = v
+        else:
+            setattr(m.info, k, v)
+    return m
+
+
+@needs_rosbags
+@pytest.mark.parametrize("info, needle", [
+    ({"resolution": 1e-30}, "info.resolution: expected a cell size in [0.001, 1000] m, got 1e-30"),
+    ({"resolution": 3e38}, "info.resolution: expected a cell size in [0.001, 1000] m"),
+    ({"data": [0] * 11 + [127]}, "data: expected cell values in -1..100 (-1 unknown, 0..100 occupancy), got 127 "
+                                 "(cell 11; 1 such cells)"),
+    ({"data": [-2] + [0] * 11}, "got -2 (cell 0"),
+    ({"x": 1e300}, "info.origin.position: expected finite numbers within 1e+06 m"),
+])
+def test_items5_8_occupancy_grid_messages_outside_the_map_limits_are_refused(info, needle):
+    """Item 5: `resolution 1e-30` gave an IndexError in circsim/locate.py; item 8: `resolution 3e38`, or cells
+    of 127, were accepted (charging the merger false merges; `merge --bag` read 127 as occupied)."""
+    from merger.io.bagio import grid_from_message
+    from merger.io.mapread import MapFileError
+
+    with pytest.raises(MapFileError) as e:
+        grid_from_message(_grid_msg(**info), "m: topic /map")
+    assert str(e.value).startswith("m: topic /map: ") and needle in str(e.value)
+
+
+@pytest.fixture(scope="module")
+def run_bag(tmp_path_factory):
+    """A run of scene1 (1 s) as a bag, for `circsim score`."""
+    pytest.importorskip("rosbags", reason="the ros extra (rosbags) is not installed")
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.record.bag import BagRecorder
+    from circsim.sim import Simulation
+
+    out = tmp_path_factory.mktemp("run") / "scene1"
+    sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides(["duration_s=1"])
+    Simulation(sc, [BagRecorder(out)]).run()
+    return out
+
+
+@pytest.mark.parametrize("res", [1e-30, 3e38])
+def test_item5_score_of_a_merged_bag_with_an_absurd_resolution_is_one_line(run_bag, tmp_path, res, capsys):
+    """`circsim score RUN --merged-bag M` with `resolution 1e-30`: IndexError after a cast warning."""
+    import numpy as np
+
+    from circsim.cli import main
+    from merger.grid import OCCUPIED_S, OccupancyGrid
+    from tests.circsim.test_score import _write_merged_bag
+
+    g = OccupancyGrid(np.zeros((40, 40), np.uint8), res, (0.0, 0.0))
+    g.states[5:7, 5:30] = OCCUPIED_S
+    _write_merged_bag(tmp_path / "M", [(0.5, g)])
+    assert main(["score", str(run_bag), "--merged-bag", str(tmp_path / "M")]) == 2
+    captured = capsys.readouterr()
+    one_line_error(captured.err, "circsim", str(tmp_path / "M"), "topic /map", "info.resolution")

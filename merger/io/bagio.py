@@ -4,7 +4,10 @@ library: no ROS installation needed (``pip install 'circsim[bag]'``).
 A map topic (``/r1/map``) is latched and republished as the map grows: the last message of each topic
 is the robot's newest map. The message's grid is already in the convention of :mod:`merger.grid` (int8,
 −1 unknown, 0..100 occupancy, row-major, row 0 at the origin); a cell is occupied above 65, free below
-19.6 (map_server's thresholds), unknown otherwise. A rotated origin is refused, as in :mod:`merger.io.mapread`.
+19.6 (map_server's thresholds), unknown otherwise. A rotated origin is refused, as in :mod:`merger.io.mapread`,
+and so are what a map file may not hold either: a cell size outside [``MIN_RESOLUTION_M``, 1000 m], an
+origin beyond ``MAX_ORIGIN_M``, and cell values outside −1..100 (a 127 is not "occupied": it is no
+OccupancyGrid value at all).
 
 Every problem raises :class:`merger.io.mapread.MapFileError` naming the bag and the topic.
 """
@@ -17,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import OccupancyGrid
-from .mapread import MapFileError
+from .mapread import MAX_ORIGIN_M, MIN_RESOLUTION_M, MapFileError
 
 MSGTYPE = "nav_msgs/msg/OccupancyGrid"
 MAX_CELLS = 100_000_000
+MAX_RESOLUTION_M = 1e3  # as a map file's `resolution` (merger.io.mapread)
 
 
 def _rosbags():
@@ -37,23 +41,42 @@ def grid_from_message(msg, where: str) -> OccupancyGrid:
     """A ``nav_msgs/msg/OccupancyGrid`` message (deserialized) as an :class:`OccupancyGrid`."""
     info = msg.info
     w, h, res = int(info.width), int(info.height), float(info.resolution)
-    if not (math.isfinite(res) and res > 0):
-        raise MapFileError(f"{where}: info.resolution: expected a number > 0, got {res!r}")
+    if not (math.isfinite(res) and MIN_RESOLUTION_M <= res <= MAX_RESOLUTION_M):
+        raise MapFileError(f"{where}: info.resolution: expected a cell size in [{MIN_RESOLUTION_M:g}, "
+                           f"{MAX_RESOLUTION_M:g}] m, got {res!r}")
     if w <= 0 or h <= 0 or w * h > MAX_CELLS:
         raise MapFileError(f"{where}: info.width x info.height: expected a non-empty grid of at most "
                            f"{MAX_CELLS} cells, got {w} x {h}")
     data = np.asarray(msg.data, dtype=np.int8)
     if data.size != w * h:
         raise MapFileError(f"{where}: data: expected width x height = {w * h} cells, got {data.size}")
+    bad = np.flatnonzero((data < -1) | (data > 100))
+    if bad.size:
+        raise MapFileError(f"{where}: data: expected cell values in -1..100 (-1 unknown, 0..100 occupancy), got "
+                           f"{int(data[bad[0]])} (cell {int(bad[0])}; {bad.size} such cells)")
     p, q = info.origin.position, info.origin.orientation
     x, y = float(p.x), float(p.y)
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise MapFileError(f"{where}: info.origin.position: expected finite numbers, got ({x}, {y})")
+    if not (math.isfinite(x) and math.isfinite(y) and abs(x) <= MAX_ORIGIN_M and abs(y) <= MAX_ORIGIN_M):
+        raise MapFileError(f"{where}: info.origin.position: expected finite numbers within {MAX_ORIGIN_M:g} m, "
+                           f"got ({x}, {y})")
     yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
     if abs(yaw) > 1e-6:
         raise MapFileError(f"{where}: info.origin.orientation: a rotated origin (yaw {math.degrees(yaw):.3f}°) "
                            "is not supported")
     return OccupancyGrid.from_ros(data.reshape(h, w), res, (x, y))
+
+
+def check_outputs_outside(bag, outputs: dict) -> None:
+    """Before any work: no output (``{path: option}``) may be the input bag or lie inside it (``merger merge
+    --bag B -o B/metadata`` overwrote the bag's metadata.yaml, issue 46). MapFileError naming both."""
+    import os
+
+    b = os.path.normcase(os.path.realpath(bag))
+    for p, what in outputs.items():
+        k = os.path.normcase(os.path.realpath(p))
+        if k == b or k.startswith(b.rstrip(os.sep) + os.sep):
+            raise MapFileError(f"{what} {p}: is inside the input bag {bag}: expected an output outside it "
+                               "(a bag is read, never written)")
 
 
 def check_bag_files(path: Path) -> None:

@@ -185,3 +185,38 @@ def test_item5_score_of_a_merged_bag_with_an_absurd_resolution_is_one_line(run_b
     assert main(["score", str(run_bag), "--merged-bag", str(tmp_path / "M")]) == 2
     captured = capsys.readouterr()
     one_line_error(captured.err, "circsim", str(tmp_path / "M"), "topic /map", "info.resolution")
+
+
+@pytest.mark.parametrize("algorithm", ["features", "hough", "thesis"])
+@pytest.mark.parametrize("shape", [(1, 400), (400, 1), (1, 1), (62, 300)])
+def test_item6_every_algorithm_refuses_a_map_too_small_for_it_with_its_rule(algorithm, shape):
+    """`merger merge A B --algorithm features` on a 1×400 map: `cv2.error ... inv_scale_x > 0` (OpenCV's ORB
+    pyramid). Each algorithm answers or refuses naming its rule (the same map twice may well be placed);
+    features says which map is too small and the size it needs."""
+    import numpy as np
+
+    from merger.algorithms import align_pair
+    from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+    from merger.team.orders import MapInput, MergeParams
+
+    g = OccupancyGrid(np.full(shape, FREE_S, np.uint8), 0.05, (0.0, 0.0))
+    g.states[::3, ::7] = OCCUPIED_S
+    ans = align_pair(algorithm, MapInput("a", g, (0.0, 0.0)), MapInput("b", g, (0.0, 0.0)), MergeParams())
+    assert ans.accepted or ans.reason  # an answer, or a refusal naming its rule: never an exception
+    if algorithm == "features":
+        assert not ans.accepted and f"a is {shape[0]} × {shape[1]} cells" in ans.reason and "at least 63 cells a side" in ans.reason
+
+
+def test_item6_merge_of_a_thin_map_with_features_is_a_refusal_not_a_traceback(tmp_path):
+    import numpy as np
+
+    from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+    from merger.io.mapio import save_map
+
+    g = OccupancyGrid(np.full((1, 400), FREE_S, np.uint8), 0.05, (0.0, 0.0))
+    g.states[:, ::7] = OCCUPIED_S
+    a, b = save_map(g, tmp_path / "a")[0], save_map(g, tmp_path / "b")[0]
+    code, out, err, _ = _cli(tmp_path, "merger", "merge", a, b, "--center", "0,0", "--center", "0,0",
+                             "--algorithm", "features", "-o", tmp_path / "m", timeout_s=60)
+    assert code == 1 and err == "", err
+    assert "63 cells a side" in out and not (tmp_path / "m.yaml").exists()

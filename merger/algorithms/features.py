@@ -39,6 +39,8 @@ MATCH_CONF = 0.3  # BestOf2NearestMatcher's match_conf: the ratio test keeps d1 
 NUM_MATCHES_THRESH1 = 6  # fewer matches: no transform is estimated
 RANSAC_REPROJ_PX = 3.0  # estimateAffinePartial2D's default threshold
 CONFIDENCE_MIN = 1.0  # map_merge's estimation_confidence default
+ORB_EDGE_PX = 31  # ORB's edgeThreshold (OpenCV's default): no keypoint nearer the border
+MIN_SIDE = 2 * ORB_EDGE_PX + 1  # a map narrower has no feature (and OpenCV's pyramid fails on 1 cell)
 
 
 def image(g: OccupancyGrid) -> np.ndarray:
@@ -73,6 +75,12 @@ def matches(d_mov, d_ref) -> list[tuple[int, int]]:
 def align(ref, mov, params=None) -> PairAnswer:
     """Map ``mov`` onto map ``ref`` (:class:`merger.team.orders.MapInput`) by m-explore's pipeline; ``params``
     is not used (the pipeline has its own constants, above)."""
+    small = [f"{m.name} is {m.grid.height} × {m.grid.width} cells" for m in (ref, mov)
+             if min(m.grid.height, m.grid.width) < MIN_SIDE]
+    if small:
+        return refused(f"features: {'; '.join(small)}: ORB finds features only {ORB_EDGE_PX} cells or more from "
+                       f"every border, so each map needs at least {MIN_SIDE} cells a side",
+                       sizes=[[m.grid.height, m.grid.width] for m in (ref, mov)])
     k_mov, d_mov = _features(mov.grid)
     k_ref, d_ref = _features(ref.grid)
     n_mov, n_ref = len(k_mov), len(k_ref)

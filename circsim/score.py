@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,6 +50,7 @@ class ScoreError(ValueError):
 
 
 def _text(path: Path, limit: int) -> str:
+    """The UTF-8 text of the regular file ``path``: a folder, FIFO or device is named as such (ValueError)."""
     try:
         return read_input(path, limit, "file").decode()
     except UnicodeDecodeError:
@@ -73,6 +75,7 @@ class Truth:
     tol_m: float
     map_topics: dict = field(default_factory=dict)  # robot -> its map topic in the bag
     source: str = ""
+    sim_s: float | None = None  # the run's length: estimates are stamped within [0, sim_s]
 
 
 @dataclass(frozen=True)
@@ -90,30 +93,61 @@ def load_truth(run) -> Truth:
     if not path.is_file():
         raise ScoreError(f"{run}: no {TRUTH_FILE} here: expected a bag written by `circsim run --bag`")
     d = _yaml(path, MAX_YAML_BYTES)
+
+    def num(v, key):
+        x = _number(v)
+        if x is None:
+            raise ScoreError(f"{path}: {key}: expected a finite number, got {one_line(repr(v))}")
+        return x
+
+    def nums(v, key, n):
+        if not isinstance(v, list | tuple) or len(v) != n:
+            raise ScoreError(f"{path}: {key}: expected {n} finite numbers, got {one_line(repr(v))}")
+        return tuple(num(x, key) for x in v)
+
     try:
         robots = tuple(d["robots"])
-        centers = {n: tuple(map(float, d["robots"][n]["center_given"])) for n in robots}
+        centers = {n: nums(d["robots"][n]["center_given"], f"robots.{n}.center_given", 2) for n in robots}
         topics = {n: str(d["robots"][n]["map_topic"]) for n in robots}
         theta, t_m, rigid = {}, {}, {}
         for i in robots:
             theta[i], t_m[i], rigid[i] = {i: 0.0}, {i: (0.0, 0.0)}, {i: (0.0, 0.0, 0.0)}
             for j in robots:
                 if j != i:
-                    p = d["truth"][i][j]
-                    theta[i][j] = float(p["theta_deg"])
-                    t_m[i][j] = tuple(map(float, p["t_m"]))
-                    rigid[i][j] = (float(p["yaw_deg"]), float(p["x_m"]), float(p["y_m"]))
+                    p, k = d["truth"][i][j], f"truth.{i}.{j}"
+                    theta[i][j] = num(p["theta_deg"], f"{k}.theta_deg")
+                    t_m[i][j] = nums(p["t_m"], f"{k}.t_m", 2)
+                    rigid[i][j] = tuple(num(p[c], f"{k}.{c}") for c in ("yaw_deg", "x_m", "y_m"))
         tol = d["tolerance"]
-        return Truth(robots, centers, theta, t_m, rigid, float(tol["deg"]), float(tol["m"]), topics, str(path))
+        tol_deg, tol_m = num(tol["deg"], "tolerance.deg"), num(tol["m"], "tolerance.m")
+        if tol_deg < 0 or tol_m < 0:
+            raise ScoreError(f"{path}: tolerance: expected numbers >= 0, got {tol_deg:g} deg, {tol_m:g} m")
+        sim_s = num(d["sim_s"], "sim_s") if "sim_s" in d else None
+        if sim_s is not None and sim_s < 0:
+            raise ScoreError(f"{path}: sim_s: expected a run's length >= 0 s, got {sim_s:g}")
+        return Truth(robots, centers, theta, t_m, rigid, tol_deg, tol_m, topics, str(path), sim_s)
     except (KeyError, TypeError, ValueError, AttributeError) as e:
+        if isinstance(e, ScoreError):
+            raise
         raise ScoreError(f"{path}: not a circsim truth file (missing or bad key: {one_line(str(e))})") from None
+
+
+def _number(v) -> float | None:
+    """``v`` as a finite float (a number, or a CSV cell's text), or None: YAML's true/false are not numbers."""
+    if isinstance(v, bool):
+        return None
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
 
 
 def read_transforms(path, truth: Truth) -> list[Estimate]:
     """Estimates from a CSV or YAML file of rows (module docstring), in time order (stable)."""
     path = Path(path)
-    if not path.is_file():
-        raise ScoreError(f"{path}: no such transforms file")
+    if not os.path.lexists(path):
+        raise ScoreError(f"{path}: no such transforms file")  # a folder, FIFO or device: named by _text
     if path.suffix.lower() in (".yaml", ".yml"):
         d = _yaml(path, MAX_TRANSFORMS_BYTES)
         rows = d.get("transforms") if isinstance(d, dict) else d
@@ -133,14 +167,17 @@ def read_transforms(path, truth: Truth) -> list[Estimate]:
         if not isinstance(row, dict):
             raise ScoreError(f"{w}: expected a row with keys {', '.join(COLUMNS)}")
         try:
-            t, yaw, x, y = (float(row[k]) for k in ("t_s", "yaw_deg", "x_m", "y_m"))
+            t, yaw, x, y = (_number(row[k]) for k in ("t_s", "yaw_deg", "x_m", "y_m"))
             robot, m = str(row["robot"]), str(row["map"])
         except KeyError as e:
             raise ScoreError(f"{w}: missing {e}") from None
-        except (TypeError, ValueError):
-            raise ScoreError(f"{w}: t_s, yaw_deg, x_m, y_m: expected numbers") from None
-        if not all(map(math.isfinite, (t, yaw, x, y))):
-            raise ScoreError(f"{w}: t_s, yaw_deg, x_m, y_m: expected finite numbers")
+        bad = [k for k, v in zip(("t_s", "yaw_deg", "x_m", "y_m"), (t, yaw, x, y), strict=True) if v is None]
+        if bad:
+            raise ScoreError(f"{w}: {', '.join(bad)}: expected finite numbers, got "
+                             + ", ".join(one_line(repr(row[k])) for k in bad))
+        if t < 0 or (truth.sim_s is not None and t > truth.sim_s + 1e-6):
+            span = f"[0, {truth.sim_s:g}] s (the run's length)" if truth.sim_s is not None else ">= 0 s"
+            raise ScoreError(f"{w}: t_s: expected a time of the run, in {span}, got {t:g}")
         for key, name in (("robot", robot), ("map", m)):
             if name not in truth.robots:
                 raise ScoreError(f"{w}: {key}: {name!r} is no robot of the run ({', '.join(truth.robots)})")
@@ -149,9 +186,12 @@ def read_transforms(path, truth: Truth) -> list[Estimate]:
         g = groups.setdefault(key, [t, robot, {}, w])
         if g[0] != t:
             raise ScoreError(f"{w}: estimate {est}: its rows have different times ({g[0]} and {t})")
+        if m in g[2]:
+            raise ScoreError(f"{w}: map {m}: placed twice in one estimate of {robot} (at {t:g} s; first at "
+                             f"{g[2][m][3].rsplit(': ', 1)[-1]}): expected one row per map")
         if m != robot:
-            g[2][m] = (yaw, x, y)
-    out = [Estimate(t, r, p, w) for t, r, p, w in groups.values() if p]
+            g[2][m] = (yaw, x, y, w)
+    out = [Estimate(t, r, {m: v[:3] for m, v in p.items()}, w) for t, r, p, w in groups.values() if p]
     return sorted(out, key=lambda e: e.t)
 
 

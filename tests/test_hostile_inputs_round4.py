@@ -220,3 +220,85 @@ def test_item6_merge_of_a_thin_map_with_features_is_a_refusal_not_a_traceback(tm
                              "--algorithm", "features", "-o", tmp_path / "m", timeout_s=60)
     assert code == 1 and err == "", err
     assert "63 cells a side" in out and not (tmp_path / "m.yaml").exists()
+
+
+def _rows(run_bag, tmp_path, text: str, name="t.csv"):
+    from circsim.score import load_truth, read_transforms
+
+    f = tmp_path / name
+    f.write_text(text)
+    truth = load_truth(run_bag)
+    return read_transforms(f, truth), truth
+
+
+@pytest.mark.parametrize("rows, needle", [
+    ("1e6,Lyon,Nevers,0,0,0", "line 2: t_s: expected a time of the run, in [0, 1] s (the run's length), got 1e+06"),
+    ("-50,Lyon,Nevers,0,0,0", "line 2: t_s: expected a time of the run, in [0, 1] s"),
+    ("1e308,Lyon,Nevers,0,0,0", "got 1e+308"),
+    ("0.5,Lyon,Nevers,0,0,0\n0.5,Lyon,Nevers,90,0,0", "line 3: map Nevers: placed twice in one estimate of Lyon "
+                                                     "(at 0.5 s; first at line 2)"),
+    ("0.5,Lyon,Nevers,nan,0,0", "line 2: yaw_deg: expected finite numbers, got 'nan'"),
+])
+def test_item7_transforms_outside_the_run_or_twice_in_an_estimate_are_refused(run_bag, tmp_path, rows, needle):
+    """Rows at 1e6 s or -50 s were scored as first merges at those times (1e308 printed a 300-digit time);
+    the same map twice in one estimate was taken (the last row won)."""
+    from circsim.score import ScoreError
+
+    with pytest.raises(ScoreError) as e:
+        _rows(run_bag, tmp_path, "t_s,robot,map,yaw_deg,x_m,y_m\n" + rows + "\n")
+    assert needle in str(e.value), str(e.value)
+
+
+def test_item7_yaml_booleans_are_not_numbers(run_bag, tmp_path):
+    """YAML `true`/`false` were read as 1.0/0.0."""
+    from circsim.score import ScoreError
+
+    with pytest.raises(ScoreError, match=r"transforms\[0\]: yaw_deg, x_m: expected finite numbers, got True, False"):
+        _rows(run_bag, tmp_path, "- {t_s: 0.5, robot: Lyon, map: Nevers, yaw_deg: true, x_m: false, y_m: 0}\n",
+              "t.yaml")
+    est, _ = _rows(run_bag, tmp_path, "- {t_s: 0.5, robot: Lyon, map: Nevers, yaw_deg: 1, x_m: 0, y_m: 0}\n", "u.yaml")
+    assert est[0].placements == {"Nevers": (1.0, 0.0, 0.0)}
+
+
+@pytest.mark.parametrize("key, value, needle", [
+    ("yaw_deg", ".nan", "truth.Lyon.Nevers.yaw_deg: expected a finite number, got nan"),
+    ("theta_deg", "true", "truth.Lyon.Nevers.theta_deg: expected a finite number, got True"),
+    ("t_m", "[0, .inf]", "truth.Lyon.Nevers.t_m: expected a finite number, got inf"),
+])
+def test_item7_a_truth_file_with_nan_is_refused(run_bag, tmp_path, key, value, needle):
+    """A truth file with `yaw_deg: .nan` was accepted (every estimate then judged against NaN)."""
+    import shutil
+
+    from circsim.score import ScoreError, load_truth
+
+    d = yaml.safe_load((run_bag / "circsim_truth.yaml").read_text())
+    d["truth"]["Lyon"]["Nevers"][key] = "@@"
+    run = tmp_path / "run"
+    shutil.copytree(run_bag, run)
+    (run / "circsim_truth.yaml").write_text(yaml.safe_dump(d, sort_keys=False).replace("'@@'", value))
+    with pytest.raises(ScoreError) as e:
+        load_truth(run)
+    assert needle in str(e.value) and str(run / "circsim_truth.yaml") in str(e.value), str(e.value)
+
+
+@pytest.mark.parametrize("every", ["nan", "inf", "0", "-1"])
+def test_item7_every_must_be_a_finite_positive_number(run_bag, every, capsys):
+    """`--every nan` was accepted while 0 and -1 were refused."""
+    from circsim.cli import main
+
+    assert main(["score", str(run_bag), "--merged-bag", str(run_bag), "--every", every]) == 2
+    one_line_error(capsys.readouterr().err, "circsim", "--every: expected a finite number of seconds > 0")
+
+
+@pytest.mark.parametrize("kind, needle", [("folder", "got a folder"), ("fifo", "got a FIFO"),
+                                          ("device", "got a device"), ("missing", "no such transforms file")])
+def test_item11_a_transforms_path_that_is_no_file_is_named_for_what_it_is(run_bag, tmp_path, kind, needle, capsys):
+    """A folder, a FIFO and /dev/zero all read "no such transforms file"."""
+    from circsim.cli import main
+
+    f = {"folder": tmp_path, "fifo": tmp_path / "fifo.csv", "device": Path("/dev/zero"),
+         "missing": tmp_path / "none.csv"}[kind]
+    if kind == "fifo":
+        os.mkfifo(f)
+    assert main(["score", str(run_bag), "--transforms", str(f)]) == 2
+    one_line_error(capsys.readouterr().err, "circsim", str(f), needle)

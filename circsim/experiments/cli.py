@@ -8,6 +8,7 @@ prints it and exits with 2 (:mod:`circsim.commands`: what the commands share).
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -316,8 +317,8 @@ def register_score(sub) -> None:
 def cmd_score(args) -> int:
     from .. import score as scoring
 
-    if args.every <= 0:
-        raise ValueError(f"--every: expected a number of seconds > 0, got {args.every:g}")
+    if not (math.isfinite(args.every) and args.every > 0):  # nan passed `<= 0`
+        raise ValueError(f"--every: expected a finite number of seconds > 0, got {args.every:g}")
     if args.json:  # never over an input (the truth, the transforms, a bag's files)
         from merger.io.mapio import check_outputs
 

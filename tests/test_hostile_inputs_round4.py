@@ -302,3 +302,23 @@ def test_item11_a_transforms_path_that_is_no_file_is_named_for_what_it_is(run_ba
         os.mkfifo(f)
     assert main(["score", str(run_bag), "--transforms", str(f)]) == 2
     one_line_error(capsys.readouterr().err, "circsim", str(f), needle)
+
+
+@pytest.mark.parametrize("value", ["99999999999999999999", "2_0", "+3", "\u0663", "1e3", "1000000"])
+@pytest.mark.parametrize("cmd", [["merger", "align", "a.yaml", "b.yaml", "--center", "0,0"],
+                                 ["circsim", "run", "scene1", "--set", "duration_s=1"]])
+def test_item9_merger_threads_is_a_bounded_count_of_plain_digits(tmp_path, cmd, value):
+    """`MERGER_THREADS=99999999999999999999` and `2_0` (= 20) were accepted by both command lines."""
+    from merger.team.pool import max_threads
+
+    code, out, err, _ = _cli(tmp_path, *cmd, timeout_s=60, env={**os.environ, "MERGER_THREADS": value})
+    assert code == 2 and out == "", err
+    one_line_error(err, cmd[0], "MERGER_THREADS", f"<= {max_threads()}", "decimal digits only")
+
+
+def test_item9_a_count_within_the_bound_is_taken(monkeypatch):
+    from merger.team.pool import max_threads, threads
+
+    for v in ["1", " 3 ", str(max_threads())]:
+        monkeypatch.setenv("MERGER_THREADS", v)
+        assert threads() == int(v)

@@ -18,18 +18,25 @@ _POOL: ThreadPoolExecutor | None = None
 _INSIDE = threading.local()
 
 
+def max_threads() -> int:
+    """The most threads ``MERGER_THREADS`` may ask for: 4 × the machine's cores, at least 8 (more only
+    thrash: every search is compute-bound)."""
+    return max(8, 4 * (os.cpu_count() or 1))
+
+
 def threads() -> int:
-    """The pool's size: ``MERGER_THREADS`` if set (an integer ≥ 1), else the machine's cores. Anything else
-    set (``abc``, ``0``, ``-2``) raises ValueError: both command lines check it before any work."""
+    """The pool's size: ``MERGER_THREADS`` if set (plain decimal digits, 1 to :func:`max_threads`), else
+    the machine's cores. Anything else set (``abc``, ``0``, ``-2``, ``2_0``, ``99999999999999999999``)
+    raises ValueError: both command lines check it before any work."""
     text = os.environ.get("MERGER_THREADS", "").strip()
     if not text:
         return os.cpu_count() or 1
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise ValueError(f"MERGER_THREADS={text!r}: expected an integer >= 1 (threads per merge cycle; unset: "
+    cap = max_threads()
+    # int() also takes '2_0' (20), '+3', '٣' (Arabic-Indic 3) and any number of digits: only 0-9, and short
+    n = int(text) if text.isascii() and text.isdigit() and len(text) <= 6 else 0
+    if not 1 <= n <= cap:
+        raise ValueError(f"MERGER_THREADS={text[:40]!r}: expected an integer >= 1 and <= {cap} (4 x the "
+                         "machine's cores, at least 8; decimal digits only) (threads per merge cycle; unset: "
                          "one per core)")
     return n
 

@@ -9,6 +9,9 @@ nor stop a run.
   removed, the kernel is compiled again in memory and its cache rewritten;
 * a cache that cannot be written (a full disk, a read-only folder) costs only the next process's
   compile: the compiled kernel is used;
+* a ``NUMBA_CACHE_DIR`` that cannot be used (a file, a read-only mount, a folder that cannot be made):
+  numba silently caches beside the sources instead (``__pycache__``); that is said once, with where the
+  kernels are cached;
 * no place to cache at all (numba's locators: ``NUMBA_CACHE_DIR``, then the source's ``__pycache__``,
   then the user's cache folder; none writable raises ``cannot cache function …: no locator available``
   at import) compiles in memory;
@@ -70,6 +73,21 @@ _STAMP = sources_stamp(KERNEL_SOURCES)
 _FOLDER_STAMPS: dict[str, tuple] = {}
 
 
+def _check_cache_dir(used: str) -> None:
+    """Say once when ``NUMBA_CACHE_DIR`` is set but numba caches elsewhere (``used``): it could not use it."""
+    wanted = numba.config.CACHE_DIR
+    if not wanted:
+        return
+    root = os.path.abspath(wanted)
+    if os.path.abspath(used).startswith(root.rstrip(os.sep) + os.sep):
+        return
+    why = ("it is not a folder" if os.path.lexists(root) and not os.path.isdir(root) else
+           "it is not writable: a read-only mount or folder" if os.path.isdir(root) else
+           "it cannot be made")
+    warn_once("cachedir", f"NUMBA_CACHE_DIR={wanted}: cannot be used to cache compiled kernels ({why}); "
+              f"they are cached beside their sources instead (__pycache__: {used}, ...)")
+
+
 class GuardedCache(FunctionCache):
     """numba's per-function cache, whose unreadable files are discarded and whose write errors are not
     fatal (a cache is an optimisation: a failure of it only costs a compile), and which is fresh only
@@ -77,6 +95,7 @@ class GuardedCache(FunctionCache):
 
     def __init__(self, py_func):
         super().__init__(py_func)
+        _check_cache_dir(self.cache_path)
         cf = self._cache_file
         folder = os.path.dirname(os.path.abspath(py_func.__code__.co_filename))
         if folder not in _FOLDER_STAMPS:  # the kernel's own folder too (a kernel outside merger and circsim)

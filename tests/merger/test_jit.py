@@ -172,3 +172,18 @@ def test_a_kernel_is_compiled_again_when_a_kernel_it_calls_changed_in_another_fi
     src = (tmp_path / "kdep.py").read_text().replace("a + 2 * b", "a + 3 * b")
     (tmp_path / "kdep.py").write_text(src)
     assert run_module(tmp_path, env) == (0, "12\n", [])  # 3 + 3·3: compiled again, not the cached 9
+
+
+@pytest.mark.parametrize("kind", ["file", "under_a_file"])
+def test_an_unusable_numba_cache_dir_is_said_once_with_where_the_kernels_go(tmp_path, kind):
+    """NUMBA_CACHE_DIR that is a file (or on a read-only mount) gave no warning: numba silently cached
+    beside the sources instead (issue 46, item 10)."""
+    (tmp_path / "kmod.py").write_text(KERNELS)
+    (tmp_path / "afile").write_text("")
+    d = tmp_path / "afile" if kind == "file" else tmp_path / "afile" / "sub"
+    code, out, err = run_module(tmp_path, {"NUMBA_CACHE_DIR": str(d)})
+    assert (code, out) == (0, "9 7.5\n"), err
+    assert len(err) == 1, err
+    why = "it is not a folder" if kind == "file" else "it cannot be made"
+    assert err[0].startswith(f"warning: NUMBA_CACHE_DIR={d}: cannot be used to cache compiled kernels ({why}); "
+                             "they are cached beside their sources instead (__pycache__: "), err[0]

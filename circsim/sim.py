@@ -55,6 +55,8 @@ from .world.laser import scan as laser_scan
 from .world.motion import CircleTrajectory, trajectories
 from .world.world import World
 
+PATH_PERIOD_S = 0.25  # a robot's path travels with its map (merger.team.consensus), one pose per this
+
 
 @dataclass
 class Robot:
@@ -74,6 +76,7 @@ class Robot:
     first_pair_correct: bool = False
     teammates_placed: int = 0  # by the alignment it holds
     inbox_new: list[str] = field(default_factory=list)
+    path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y) of its SLAM pose, map frame
 
 
 def merge_params(sc: Scenario) -> MergeParams:
@@ -200,6 +203,8 @@ class Simulation:
         for n, r in self.robots.items():
             s = laser_scan(self.world, n, poses[n], r.laser_rng, config=sc.laser, stamp=t)
             est = r.slam.update(poses[n], s)
+            if not r.path or t >= r.path[-1][0] + PATH_PERIOD_S - 1e-9:
+                r.path.append((t, float(est[0]), float(est[1])))
             ticks.append(RobotTick(n, tuple(poses[n]), tuple(est), self._est_in_world(n, est),
                                    self.arc_deg(n, t), s))
         self._finish_merges()  # the last tick's cycles (they ran while these robots scanned)
@@ -244,7 +249,7 @@ class Simulation:
         for n, r in self.robots.items():
             if t + eps >= r.next_publish_s and r.slam.updates:
                 r.next_publish_s += self.scenario.slam.publish_period_s
-                msg = MapMessage(n, t, r.slam.grid(), r.center_given)
+                msg = MapMessage(n, t, r.slam.grid(), r.center_given, np.array(r.path, np.float64))
                 self.map_frames[n][t] = tuple(r.slam.map_frame_estimate())
                 r.merger.receive(msg)
                 r.inbox_new.append(n)

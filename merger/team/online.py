@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..grid import OccupancyGrid
 from .follow import merge_team_tracked
 from .memo import Memo
@@ -43,12 +45,14 @@ def resolve_strategy(strategy: str, team_size: int) -> str:
 
 @dataclass(frozen=True, eq=False)
 class MapMessage:
-    """A map as it travels: who made it, when (its stamp), the grid and the center in its frame."""
+    """A map as it travels: who made it, when (its stamp), the grid and the center in its frame, and
+    (optional) the robot's path in that frame up to the stamp, rows (t, x, y) (:class:`MapInput`)."""
 
     robot: str
     stamp: float
     grid: OccupancyGrid
     center: tuple[float, float]
+    trajectory: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -110,7 +114,8 @@ class TeamMerger:
     def inputs(self) -> list[MapInput]:
         """The held maps, own map first, then teammates in team order."""
         names = [self.self_name] + [n for n in self.team if n != self.self_name and n in self.maps]
-        return [MapInput(n, self.maps[n].grid, self.maps[n].center, self.maps[n].stamp) for n in names]
+        return [MapInput(n, self.maps[n].grid, self.maps[n].center, self.maps[n].stamp, self.maps[n].trajectory)
+                for n in names]
 
     def cycle(self, now: float | None = None) -> TeamMergeResult:
         """Run a merge cycle over the held maps; keep its alignment if it is accepted."""

@@ -48,6 +48,7 @@ from ..settings import (
     check_window,
 )
 from .ambiguity import PairAmbiguity
+from .consensus import AssemblyReport
 from .evidence import CONTRAST_MIN, TOLERANCE_M
 from .track import RESEARCH_CHANGE, RESEARCH_DEFAULT, RESEARCH_DROP, RESEARCH_MODES, RESEARCH_PERIOD_S
 from .verify import Verification
@@ -261,12 +262,18 @@ class MapInput:
 
     ``version`` (optional, hashable; e.g. the map message's stamp) identifies this grid and center among
     the owner's maps: with versions, :func:`merge_team` can reuse a pair alignment of unchanged maps
-    from an earlier cycle (its ``reuse`` argument)."""
+    from an earlier cycle (its ``reuse`` argument).
+
+    ``trajectory`` (optional): the owner robot's path in the map's frame, rows (t, x, y) by time, t in
+    seconds on a clock the team shares (a ROS robot's base_link in its map frame, from tf). It is physical
+    evidence no cycle check gives: a team placement that puts two robots in one place at the same time
+    is refused (:mod:`merger.team.consensus`). Maps of independent runs have no common instants: no test."""
 
     name: str
     grid: OccupancyGrid
     center: tuple[float, float]
     version: object = None
+    trajectory: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         try:
@@ -275,6 +282,12 @@ class MapInput:
             ok = False
         if not ok:
             raise ValueError(f"map {self.name!r}: center must be two finite numbers (x, y), got {self.center!r}")
+        if self.trajectory is not None:
+            tr = np.asarray(self.trajectory, np.float64)
+            if tr.ndim != 2 or tr.shape[1] != 3 or not np.isfinite(tr).all() or (np.diff(tr[:, 0]) < 0).any():
+                raise ValueError(f"map {self.name!r}: trajectory must be rows (t, x, y) of finite numbers by time, "
+                                 f"got shape {tr.shape}")
+            object.__setattr__(self, "trajectory", tr)
 
 
 @dataclass(frozen=True, eq=False)
@@ -343,6 +356,7 @@ class TeamMergeResult:
     ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
     ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.team.ambiguity`)
     charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.team.memo`)
+    assembly: AssemblyReport | None = None  # the tree strategy's consensus assembly (:mod:`merger.team.consensus`)
 
     @property
     def cost_ms(self) -> float:
@@ -390,4 +404,5 @@ class TeamMergeResult:
                 "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
                 "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
                 "chosen": self.chosen.to_dict() if self.chosen else None,
+                "assembly": self.assembly.to_dict() if self.assembly is not None else None,
                 "orders": [o.to_dict() for o in self.orders]}

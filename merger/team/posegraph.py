@@ -5,13 +5,11 @@ An edge is a :class:`PairResult`: map j searched onto map i (the map whose name 
 reference) and verified in i's frame; a verified pair's weight is its ν. :func:`spanning_tree` is the
 maximum spanning forest (Kruskal, ties to the lower indices); :func:`compose_tree` places every map the
 tree links to map 0 by chaining the pairs' placements along its path (:func:`chain`, :func:`invert`;
-x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i)). A verified pair that is not a tree edge closes a loop: it must
-agree with the composed placements within 10° and 0.2 m (:func:`inconsistent_pairs`, the ambiguity rule's
-distances), and :func:`loop_pairs` names every pair of a loop that does not. :func:`adjust` places the
-maps by least squares over the pose graph of :func:`loop_edges` (the verified pairs, and with the merge
-parameters the weaker pairs that agree with the tree); :func:`unconfirmed_edges` are the tree edges no
-loop confirms (bridges). Everything here is arithmetic on given pair results: nothing is searched or
-verified.
+x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i)); :func:`disagreement` says how far a pair's own alignment lies from
+composed placements. :func:`adjust` places the maps by least squares over the pose graph of
+:func:`loop_edges` (the verified pairs, and with the merge parameters the weaker pairs that agree with the
+placement). Which pairs are consistent and which maps are joined is :mod:`merger.team.consensus`'s
+decision; everything here is arithmetic on given pair results: nothing is searched or verified.
 """
 
 from __future__ import annotations
@@ -25,7 +23,7 @@ from ..search import Alignment, angle_diff_deg, wrap_deg
 from ..transform import rotation
 from .ambiguity import PairAmbiguity
 from .orders import AMBIGUOUS_DEG, AMBIGUOUS_M
-from .params import ORIGIN, MapInput, MergeParams, Placement
+from .params import ORIGIN, MergeParams, Placement
 from .verify import Verification
 
 
@@ -129,50 +127,6 @@ def disagreement(place: dict[int, Placement], p: PairResult, names, i: int, j: i
     return abs(angle_diff_deg(wrap_deg(th_j - th_i), th_ij)), math.dist((float(d[0]), float(d[1])), t_ij)
 
 
-def inconsistent_pairs(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
-                       tree: list[tuple[int, int]], names) -> list[tuple[int, int, float, float]]:
-    """Verified non-tree pairs (i, j) between placed maps whose own alignment disagrees with the composed
-    one by more than 10° or 0.2 m, with that disagreement (°, m)."""
-    out = []
-    in_tree = set(tree)
-    for (i, j), p in pairs.items():
-        if not p.verification.passed or (i, j) in in_tree or i not in place or j not in place:
-            continue
-        dth, dt = disagreement(place, p, names, i, j)
-        if dth > AMBIGUOUS_DEG or dt > AMBIGUOUS_M:
-            out.append((i, j, dth, dt))
-    return out
-
-
-def inconsistencies(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult],
-                    tree: list[tuple[int, int]], maps: list[MapInput]) -> list[str]:
-    """Why the assembly is inconsistent: one line per pair of :func:`inconsistent_pairs`."""
-    return [f"inconsistent: the verified pair {maps[i].name}|{maps[j].name} places {maps[j].name} "
-            f"{dth:.1f}° / {dt:.2f} m away from the spanning tree's placement"
-            for i, j, dth, dt in inconsistent_pairs(place, pairs, tree, [m.name for m in maps])]
-
-
-def loop_pairs(place, pairs, tree, links, names) -> set[tuple[int, int]]:
-    """The pairs of the inconsistent loops (:func:`inconsistencies`): each inconsistent verified pair (i, j)
-    and the tree edges on the path from i to j."""
-    parent = {b: a for a, b in links}
-
-    def up(k):
-        path = [k]
-        while path[-1] in parent:
-            path.append(parent[path[-1]])
-        return path
-
-    out = set()
-    for i, j, _, _ in inconsistent_pairs(place, pairs, tree, names):
-        out.add((i, j))
-        pi, pj = up(i), up(j)
-        common = next(k for k in pi if k in set(pj))
-        for path in (pi[:pi.index(common) + 1], pj[:pj.index(common) + 1]):
-            out |= {(min(a, b), max(a, b)) for a, b in zip(path, path[1:], strict=False)}
-    return out
-
-
 def loop_edges(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult], names,
                params: MergeParams | None = None) -> list[tuple[int, int, Placement, float]]:
     """The pose graph's edges between placed maps: (i, j, placement of j onto i, weight).
@@ -235,28 +189,3 @@ def adjust(place: dict[int, Placement], pairs: dict[tuple[int, int], PairResult]
     tt = np.linalg.lstsq(at, bt, rcond=None)[0]
     return {k: (0.0, ORIGIN) if k == 0 else
             (wrap_deg(theta[k]), (float(tt[2 * idx[k]]), float(tt[2 * idx[k] + 1]))) for k in place}
-
-
-
-def unconfirmed_edges(place, pairs, links, names, params) -> list[tuple[int, int]]:
-    """The tree edges (parent, child) that no loop confirms: removing the edge from the graph of the pose
-    graph's edges (:func:`loop_edges`: verified pairs and the weaker pairs agreeing with the tree) leaves
-    its two maps unconnected — the edge is a bridge, and the maps beyond it rest on its evidence alone."""
-    edges = [(i, j) for i, j, _, _ in loop_edges(place, pairs, names, params)]
-    out = []
-    for a, b in links:
-        e = (min(a, b), max(a, b))
-        nbrs: dict[int, list[int]] = {}
-        for i, j in edges:
-            if (i, j) != e:
-                nbrs.setdefault(i, []).append(j)
-                nbrs.setdefault(j, []).append(i)
-        seen, stack = {a}, [a]
-        while stack:
-            for y in nbrs.get(stack.pop(), ()):
-                if y not in seen:
-                    seen.add(y)
-                    stack.append(y)
-        if b not in seen:
-            out.append((a, b))
-    return out

@@ -49,25 +49,19 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 
+import numpy as np
+
 from ..grid import OccupancyGrid
 from ..search import Alignment, search
 from ..search.local import local_search
 from .ambiguity import resolve
+from .consensus import SE2, AssemblyReport, Measurement, assemble
 from .frames import Warps, compose, place_on_frame0, shifted
 from .memo import Memo, map_key
 from .orders import _beyond, _pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
-from .posegraph import (
-    PairResult,
-    adjust,
-    compose_tree,
-    inconsistencies,
-    loop_pairs,
-    pair_placement,
-    spanning_tree,
-    unconfirmed_edges,
-)
+from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
 from .superpose import fuse
 from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
@@ -104,10 +98,6 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
 
 def _placement(p: PairResult) -> Placement:
     return (float(p.alignment.theta_deg), (float(p.alignment.translation_m[0]), float(p.alignment.translation_m[1])))
-
-
-BRIDGE_MARGIN = 0.05  # a tree edge no loop confirms needs ν ≥ ν_min + this (Cartographer: a global match
-# needs global_localization_min_score 0.6, a local one min_score 0.55); docs/limits.md, hall16
 
 
 def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # noqa: B008 (frozen)
@@ -222,27 +212,23 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if reuse is not None:
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    edges = {ij: p.verification.nu for ij, p in pairs.items() if p.verification.passed}
     names = [m.name for m in maps]
-    weak: dict[tuple[int, int], str] = {}
-    for _ in range(len(maps)):  # drop the weak bridges, then span again (each round drops one at least)
-        tree = spanning_tree(len(maps), edges)
-        place, links = compose_tree(len(maps), tree, pairs, names)
-        drop = [e for e in ((min(a, b), max(a, b)) for a, b in unconfirmed_edges(place, pairs, links, names, params))
-                if pairs[e].verification.nu < params.nu_min + BRIDGE_MARGIN]
-        if not drop:
-            break
-        for e in drop:
-            del edges[e]
-            weak[e] = (f"{names[e[0]]}|{names[e[1]]}: only this pair links it and no loop confirms it; ν "
-                       f"{pairs[e].verification.nu:.3f} < ν_min + {BRIDGE_MARGIN:g} (a single unconfirmed link)")
-    if len(place) == 1:  # no verified pair reaches map 0: report its best pair, rejected
+    labels = {ij: f"{names[ij[0]]}|{names[ij[1]]}" for ij in pairs}
+    meas = [Measurement(i, j, _se2(pair_placement(p, names, i, j)), p.verification.nu, labels[(i, j)])
+            for (i, j), p in pairs.items() if p.verification.passed]
+    team = assemble(len(maps), meas, tested=len(pairs), nu_min=params.nu_min, names=names,
+                    trajectories=[_centered(m) for m in maps])
+    kept = {ij: p for ij, p in pairs.items() if labels[ij] not in team.rejected}
+    tree = spanning_tree(len(maps), {(m.i, m.j): m.nu for m in team.used})
+    _, links = compose_tree(len(maps), tree, pairs, names)
+    place = {k: (p[0], (p[1], p[2])) for k, p in team.place.items()}
+    fallback = len(place) == 1
+    if fallback:  # nothing joins map 0: report its best pair, rejected
         best = max(range(1, len(maps)), key=lambda k: (pairs[(0, k)].verification.nu, -k))
         place[best] = pair_placement(pairs[(0, best)], names, 0, best)
         links = [(0, best)]
-    inconsistent = inconsistencies(place, pairs, tree, maps)
-    if not inconsistent:
-        place = adjust(place, pairs, names, params)
+    else:
+        place = adjust(place, kept, names, params)
     order = list(place)  # breadth-first: map 0 first
     sub = [maps[k] for k in order]
     sub_place = {s: place[k] for s, k in enumerate(order)}
@@ -261,12 +247,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         if ij in linked and pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly
             failed.append(v.reason)
             suspects.add(ij)
-    if any(not pairs[ij].verification.passed or ij in weak for ij in linked):  # the fallback pair of an unlinked map 0
-        failed += [weak.get(ij) or pairs[ij].verification.reason for ij in linked
-                   if not pairs[ij].verification.passed or ij in weak]
-    failed += inconsistent
-    if inconsistent:  # every pair of an inconsistent loop: the non-tree pair and the tree path it closes
-        suspects |= loop_pairs(place, pairs, tree, links, names)
+    if fallback:
+        k = links[0][1]
+        failed.append(pairs[(0, k)].verification.reason if not pairs[(0, k)].verification.passed else
+                      team.left_out.get(k, "") or f"{names[k]}: not joined to the team")
+    suspects |= {ij for ij in pairs if labels[ij] in team.rejected}
     if tracker is not None:  # a local answer the assembly found wrong is searched globally at the next version
         for ij in suspects:
             p = pairs[ij]
@@ -285,6 +270,22 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         lay = place_on_frame0(sub, sub_place, sw)
         merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
         layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
+    report = AssemblyReport(len(team.used), {k: v for k, v in team.rejected.items()},
+                            {names[k]: v for k, v in team.left_out.items()}, tuple(team.joins))
     return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
                            guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None),
-                           memo.take_charged_ms() if memo is not None else 0.0)
+                           memo.take_charged_ms() if memo is not None else 0.0, report)
+
+
+def _se2(p: Placement) -> SE2:
+    return (float(p[0]), float(p[1][0]), float(p[1][1]))
+
+
+def _centered(m: MapInput):
+    """The map's robot path as rows (t, x − c_x, y − c_y), or None."""
+    if m.trajectory is None:
+        return None
+    tr = np.array(m.trajectory, np.float64, copy=True)
+    tr[:, 1] -= m.center[0]
+    tr[:, 2] -= m.center[1]
+    return tr

@@ -1,0 +1,176 @@
+"""The team's placement from mutually consistent measurements (merger.team.consensus, issue 43)."""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from merger.team.consensus import (
+    SEPARATION_M,
+    Measurement,
+    Paths,
+    apart,
+    assemble,
+    compose,
+    inverse,
+    single_bar,
+)
+
+
+def _truth(n, rng):
+    """True placements of n maps onto map 0 (centered coordinates)."""
+    return [(0.0, 0.0, 0.0)] + [(float(rng.uniform(0, 360)), *map(float, rng.uniform(-0.3, 0.3, 2)))
+                                for _ in range(n - 1)]
+
+
+def _meas(truth, i, j, nu=0.6, off=(0.0, 0.0, 0.0), names=None):
+    """The measurement of map j onto map i: truth_i⁻¹ ∘ truth_j, moved by ``off`` (a wrong one)."""
+    z = compose(off, compose(inverse(truth[i]), truth[j]))
+    label = f"{names[i]}|{names[j]}" if names else f"{i}|{j}"
+    return Measurement(i, j, z, nu, label)
+
+
+def _names(n):
+    return [f"R{k}" for k in range(n)]
+
+
+def _placed_right(a, truth, k, tol=(0.5, 0.02)):
+    dth, dt = apart(a.place[k], truth[k])
+    return dth <= tol[0] and dt <= tol[1]
+
+
+def test_two_clusters_joined_by_one_wrong_but_verified_pair_are_not_assembled():
+    """Two clusters, each a consistent triangle; between them one pair verified at a wrong rotation with a
+    ν below the bar for 15 tested pairs: map 0's cluster is placed, the other left out and said why."""
+    rng = np.random.default_rng(1)
+    truth = _truth(6, rng)
+    names = _names(6)
+    inside = [_meas(truth, i, j, 0.7, names=names) for i, j in ((0, 1), (0, 2), (1, 2), (3, 4), (3, 5), (4, 5))]
+    wrong = _meas(truth, 2, 3, 0.6, off=(111.0, 0.1, -0.2), names=names)
+    a = assemble(6, inside + [wrong], tested=15, nu_min=0.5, names=names)
+    assert set(a.place) == {0, 1, 2}
+    assert all(_placed_right(a, truth, k) for k in a.place)
+    assert set(a.left_out) == {3, 4, 5} and "needs ν >=" in a.left_out[3]
+
+
+def test_two_independent_consistent_pairs_join_the_clusters():
+    rng = np.random.default_rng(2)
+    truth = _truth(6, rng)
+    names = _names(6)
+    inside = [_meas(truth, i, j, 0.7, names=names) for i, j in ((0, 1), (0, 2), (1, 2), (3, 4), (3, 5), (4, 5))]
+    one = [_meas(truth, 2, 3, 0.6, names=names)]
+    assert set(assemble(6, inside + one, tested=15, nu_min=0.5, names=names).place) == {0, 1, 2}
+    two = one + [_meas(truth, 1, 5, 0.55, names=names)]
+    a = assemble(6, inside + two, tested=15, nu_min=0.5, names=names)
+    assert set(a.place) == set(range(6)) and all(_placed_right(a, truth, k) for k in range(6))
+    assert any("2 agreeing routes (2 direct)" in j for j in a.joins)
+
+
+def test_a_wrong_cluster_joined_by_two_agreeing_wrong_pairs_is_not_joined_with_a_correct_rival():
+    """Two wrong pairs agree on a wrong placement of the second cluster; two right ones agree on the
+    true one: neither group has twice the other's routes, so nothing joins (a false rejection is cheap)."""
+    rng = np.random.default_rng(3)
+    truth = _truth(6, rng)
+    names = _names(6)
+    inside = [_meas(truth, i, j, 0.7, names=names) for i, j in ((0, 1), (0, 2), (1, 2), (3, 4), (3, 5), (4, 5))]
+    off = (90.0, 0.0, 0.0)
+    wrong = [_meas(truth, 0, 3, 0.9, off=_cluster_off(truth, 0, 3, off), names=names),
+             _meas(truth, 1, 4, 0.9, off=_cluster_off(truth, 1, 4, off), names=names)]
+    right = [_meas(truth, 2, 5, 0.6, names=names), _meas(truth, 1, 3, 0.6, names=names)]
+    a = assemble(6, inside + wrong + right, tested=15, nu_min=0.5, names=names)
+    assert set(a.place) == {0, 1, 2} and "against 2 placing it elsewhere" in a.left_out[3]
+
+
+def _cluster_off(truth, i, j, off):
+    """The offset that makes measurement (i, j) place j's whole cluster moved by ``off`` in map 0's frame."""
+    moved = compose(off, truth[j])
+    return compose(compose(inverse(truth[i]), moved), inverse(compose(inverse(truth[i]), truth[j])))
+
+
+def test_an_injected_inconsistent_measurement_is_rejected_and_named():
+    rng = np.random.default_rng(4)
+    truth = _truth(5, rng)
+    names = _names(5)
+    meas = [_meas(truth, i, j, 0.6, names=names) for i in range(5) for j in range(i + 1, 5)]
+    meas[4] = _meas(truth, 1, 2, 0.95, off=(45.0, 0.2, 0.0), names=names)  # the strongest, and wrong
+    a = assemble(5, meas, tested=10, nu_min=0.5, names=names)
+    assert set(a.place) == set(range(5)) and all(_placed_right(a, truth, k) for k in range(5))
+    assert set(a.rejected) == {"R1|R2"} and a.rejected["R1|R2"].startswith("inconsistent")
+    assert len(a.used) == 9
+
+
+def test_a_lone_measurement_joins_only_above_a_bar_that_grows_with_the_pairs_tested():
+    assert single_bar(0.5, 6) == 0.55  # four robots: today's bridge margin
+    assert single_bar(0.5, 28) < single_bar(0.5, 120) < single_bar(0.5, 496) < 0.9
+    rng = np.random.default_rng(5)
+    truth = _truth(2, rng)
+    names = _names(2)
+    strong = [_meas(truth, 0, 1, 0.7, names=names)]
+    assert set(assemble(2, strong, tested=6, nu_min=0.5, names=names).place) == {0, 1}
+    assert set(assemble(2, strong, tested=120, nu_min=0.5, names=names).place) == {0}
+
+
+def _circle_paths(n, truth, radius=3.0, steps=20, dt=0.25):
+    """Robots k driving one circle 360/n° apart, each path in its own map's centered coordinates."""
+    out = []
+    for k in range(n):
+        t = dt * np.arange(steps)
+        phi = np.radians(360.0 * k / n) + 0.05 * t
+        world = np.stack([radius * np.cos(phi), radius * np.sin(phi)], axis=1)  # map 0's frame
+        inv = inverse(truth[k])
+        c, s = math.cos(math.radians(inv[0])), math.sin(math.radians(inv[0]))
+        own = np.stack([inv[1] + c * world[:, 0] - s * world[:, 1], inv[2] + s * world[:, 0] + c * world[:, 1]], 1)
+        out.append(np.column_stack([t, own]))
+    return out
+
+
+def test_a_team_stacked_on_one_spot_is_refused_by_the_robots_paths():
+    """The 32-robot failure: every map placed at the identity is consistent around every cycle (each map
+    shows the central objects ahead), but it puts every robot on map 0's robot's path."""
+    n = 8
+    truth = [(360.0 * k / n, 0.0, 0.0) for k in range(n)]  # maps at their robot's angle on the circle
+    names = _names(n)
+    stacked = [Measurement(i, j, (0.0, 0.0, 0.0), 0.8, f"{names[i]}|{names[j]}") for i in range(n) for j in range(i + 1, n)]
+    assert set(assemble(n, stacked, tested=28, nu_min=0.5, names=names).place) == set(range(n))  # blind
+    a = assemble(n, stacked, tested=28, nu_min=0.5, names=names, trajectories=_circle_paths(n, truth))
+    assert set(a.place) == {0} and all(r.startswith("impossible: it places") for r in a.rejected.values())
+    # the true placements on the same paths: every robot placed
+    right = [_meas(truth, i, j, 0.8, names=names) for i in range(n) for j in range(i + 1, n)]
+    b = assemble(n, right, tested=28, nu_min=0.5, names=names, trajectories=_circle_paths(n, truth))
+    assert set(b.place) == set(range(n)) and not b.rejected
+
+
+def test_paths_without_common_instants_say_nothing():
+    a = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    b = np.array([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0]])  # another day's run: the same spot, never at once
+    assert Paths([a, b]).conflict([0], [1], (0.0, 0.0, 0.0), ["A", "B"]) == ""
+    near = np.array([[0.0, SEPARATION_M * 0.5, 0.0], [0.5, SEPARATION_M * 0.5, 0.0], [1.0, SEPARATION_M * 0.5, 0.0]])
+    assert "within" in Paths([a, near]).conflict([0], [1], (0.0, 0.0, 0.0), ["A", "B"])
+    far = near.copy()
+    far[:, 1] = 1.0
+    assert Paths([a, far]).conflict([0], [1], (0.0, 0.0, 0.0), ["A", "B"]) == ""
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(4, 12), seed=st.integers(0, 10_000), wrong=st.integers(0, 3), density=st.floats(0.5, 1.0))
+def test_wrong_minority_measurements_never_move_a_placed_map(n, seed, wrong, density):
+    """Random teams, random subsets of true measurements and a few wrong ones (any rotation ≥ 20° off) whose
+    ν stays below the lone measurement's bar (a wrong pair above it is the risk the bar accepts): every
+    map placed is placed right — a wrong measurement joins nothing alone and cannot outvote the cycles."""
+    rng = np.random.default_rng(seed)
+    truth = _truth(n, rng)
+    names = _names(n)
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < density]
+    bad = set(map(tuple, rng.permutation(pairs)[:wrong])) if pairs else set()
+    meas = []
+    for i, j in pairs:
+        off = (float(rng.uniform(20, 340)), *map(float, rng.uniform(-0.5, 0.5, 2))) if (i, j) in bad else (0, 0, 0)
+        meas.append(_meas(truth, i, j, float(rng.uniform(0.5, 0.9)), off=off, names=names))
+        if (i, j) in bad:
+            meas[-1] = Measurement(i, j, meas[-1].z, single_bar(0.5, n * (n - 1) // 2) - 0.01, meas[-1].label)
+    a = assemble(n, meas, tested=n * (n - 1) // 2, nu_min=0.5, names=names)
+    for k in a.place:
+        if k:
+            dth, dt = apart(a.place[k], truth[k])
+            assert dth <= 10.0 and dt <= 0.2, (k, a.joins, a.rejected)

@@ -8,7 +8,7 @@ verified one. numpy, OpenCV and numba kernels: no I/O in the algorithms (file fo
 
 from __future__ import annotations
 
-from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from .grid import ROS_FREE, ROS_OCCUPIED, ROS_UNKNOWN, Cell, OccupancyGrid
 from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
 from .search import SEARCH_METHODS, Alignment, RotationProblem, register_method, search
 from .settings import DEFAULT_MEASURE, DEFAULT_ROI_M, DEFAULT_WINDOW_M, ROI_MIN_SUPPORT
@@ -19,7 +19,7 @@ from .team.superpose import fuse, superpose
 from .team.verify import Verification, verify
 
 __all__ = [
-    "FREE", "OCCUPIED", "UNKNOWN", "OccupancyGrid", "MapMessage", "TeamMerger", "SEARCH_METHODS",
+    "Cell", "ROS_FREE", "ROS_OCCUPIED", "ROS_UNKNOWN", "OccupancyGrid", "MapMessage", "TeamMerger", "SEARCH_METHODS",
     "Alignment", "RotationProblem", "register_method", "search", "Counts", "Similarity", "birk_carpin",
     "ncc", "similarity_index", "fuse", "superpose", "MapInput", "MergeParams", "OrderResult",
     "TeamMergeResult", "merge_orders", "merge_team", "Verification", "verify", "align", "load_map",

@@ -7,26 +7,39 @@ Conventions (DESIGN.md, ROS nav_msgs/OccupancyGrid):
 * ``origin`` is the world position (x, y) of the corner of cell (0, 0);
 * the centre of cell (row r, col c) is ``origin + ((c + 0.5) * res, (r + 0.5) * res)``.
 
-Internally the algorithms work on *state codes* (uint8): ``UNKNOWN_S = 0``, ``FREE_S = 1``,
-``OCCUPIED_S = 2``.  The order unknown < free < occupied is deliberate: superposition with
+``OccupancyGrid.states`` holds *state codes* (uint8): :class:`Cell` (``Cell.UNKNOWN = 0``, ``Cell.FREE = 1``,
+``Cell.OCCUPIED = 2``; the kernels' ``UNKNOWN_S``, ``FREE_S``, ``OCCUPIED_S`` are the same numbers), so
+``grid.states == Cell.OCCUPIED`` selects the occupied cells. The ROS values are named apart
+(``ROS_UNKNOWN = -1``, ``ROS_FREE = 0``, ``ROS_OCCUPIED = 100``): they are what :meth:`OccupancyGrid.to_ros`
+gives, never what ``states`` holds. The order unknown < free < occupied is deliberate: superposition with
 occupied priority of two known cells and max-pooling are then plain maxima.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import IntEnum
 
 import numpy as np
 
-# ROS int8 values at the public boundary
-UNKNOWN = -1
-FREE = 0
-OCCUPIED = 100
+# ROS int8 values at the public boundary (OccupancyGrid.to_ros, map files): never in ``states``
+ROS_UNKNOWN = -1
+ROS_FREE = 0
+ROS_OCCUPIED = 100
 
-# internal state codes
-UNKNOWN_S = np.uint8(0)
-FREE_S = np.uint8(1)
-OCCUPIED_S = np.uint8(2)
+
+class Cell(IntEnum):
+    """The state codes ``OccupancyGrid.states`` holds: ``grid.states == Cell.OCCUPIED``."""
+
+    UNKNOWN = 0
+    FREE = 1
+    OCCUPIED = 2
+
+
+# the same codes as numpy scalars, for the compiled kernels
+UNKNOWN_S = np.uint8(Cell.UNKNOWN)
+FREE_S = np.uint8(Cell.FREE)
+OCCUPIED_S = np.uint8(Cell.OCCUPIED)
 
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
@@ -49,7 +62,7 @@ def states_from_ros(data: np.ndarray, *, occupied_thresh: float = DEFAULT_OCCUPI
 
 
 def ros_from_states(states: np.ndarray) -> np.ndarray:
-    lut = np.array([UNKNOWN, FREE, OCCUPIED], np.int8)
+    lut = np.array([ROS_UNKNOWN, ROS_FREE, ROS_OCCUPIED], np.int8)
     return lut[np.asarray(states, np.uint8)]
 
 

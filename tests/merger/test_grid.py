@@ -52,3 +52,18 @@ def test_known_part_is_the_block_of_known_cells_on_the_same_lattice():
     assert empty.known_part() is empty
     full = OccupancyGrid(np.ones((2, 2), np.uint8))
     assert full.known_part() is full
+
+
+def test_public_state_constants_match_the_grid_and_are_apart_from_ros_values():
+    """``grid.states == merger.Cell.OCCUPIED`` finds the occupied cells (issue 45, item 5: ``merger.OCCUPIED``
+    was ROS's 100 and matched nothing in ``states``); the ROS values are named ``ROS_*`` and are not exported as
+    bare UNKNOWN/FREE/OCCUPIED."""
+    import merger
+
+    g = OccupancyGrid.from_ros(np.array([[-1, 0, 100]], np.int8))
+    assert (g.states == merger.Cell.OCCUPIED).tolist() == [[False, False, True]]
+    assert (g.states == merger.Cell.FREE).tolist() == [[False, True, False]]
+    assert (g.states == merger.Cell.UNKNOWN).tolist() == [[True, False, False]]
+    assert (g.to_ros() == merger.ROS_OCCUPIED).tolist() == [[False, False, True]]
+    assert (merger.ROS_UNKNOWN, merger.ROS_FREE, merger.ROS_OCCUPIED) == (-1, 0, 100)
+    assert not any(hasattr(merger, n) for n in ("UNKNOWN", "FREE", "OCCUPIED"))

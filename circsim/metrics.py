@@ -90,6 +90,12 @@ class RobotMetrics:
     accepted_error_max: dict = field(default_factory=dict)  # {"start"|"estimated": {"deg": .., "m": ..}}
     slam_pose_error: list = field(default_factory=list)  # [[t, metres, degrees], ...] every whole second
     slam_pose_error_max: dict = field(default_factory=lambda: {"m": 0.0, "deg": 0.0})
+    # the tree's consensus assembly (merger.team.consensus), summed over cycles: measurements rejected as
+    # inconsistent with a stronger group, as impossible (two robots in one place), and maps left out
+    assembly_inconsistent: int = 0
+    assembly_impossible: int = 0
+    assembly_left_out: int = 0
+    consistent_set: list = field(default_factory=list)  # [[t, measurements in the consistent set], ...] at every change
 
     @property
     def teammates_placed_final(self) -> int:
@@ -99,6 +105,7 @@ class RobotMetrics:
         d = dict(self.__dict__)
         d["teammates_placed"] = [list(p) for p in self.teammates_placed]
         d["slam_pose_error"] = [list(p) for p in self.slam_pose_error]
+        d["consistent_set"] = [list(p) for p in self.consistent_set]
         d["teammates_placed_final"] = self.teammates_placed_final
         return d
 
@@ -358,6 +365,13 @@ class MetricsObserver(Observer):
             self.result.cycle_ms.append(cycle.result.cost_ms)
         if cycle.teammates_placed != m.teammates_placed_final:
             m.teammates_placed.append([cycle.t, cycle.teammates_placed])
+        asm = getattr(cycle.result, "assembly", None)
+        if asm is not None and not cycle.adopted_from:
+            m.assembly_inconsistent += sum(r.startswith("inconsistent") for r in asm.rejected.values())
+            m.assembly_impossible += sum(r.startswith("impossible") for r in asm.rejected.values())
+            m.assembly_left_out += len(asm.left_out)
+            if not m.consistent_set or m.consistent_set[-1][1] != asm.consistent:
+                m.consistent_set.append([cycle.t, asm.consistent])
         if cycle.first_pair_correct:
             m.first_pair_merge_s = cycle.t
             m.first_pair_merge_arc_deg = self._arc_of(cycle.robot, cycle.t)

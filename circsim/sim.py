@@ -137,6 +137,7 @@ class Simulation:
         self.hypothesis_network = Network(sc.network, np.random.default_rng(ss.spawn(1)[0]))
         self.share = bool(sc.merger.share_hypotheses)
         self._consensus_told = False
+        self._assembly_told: dict[str, tuple[set, set]] = {}  # per robot: rejected pairs, left-out maps last told
         # the last tick's merge cycles, running while this tick's robots scan: (t, [(robot, trigger)], future)
         self._pending = None
         self._cycles_thread: ThreadPoolExecutor | None = None
@@ -309,6 +310,7 @@ class Simulation:
                                                 est_truth_deg=est_truth, est_angle_error_deg=est_errors,
                                                 est_translation_error_m=est_t_errors, est_correct=est_correct,
                                                 map_stamps={k: r.merger.maps[k].stamp for k in held}))
+        self._tell_assembly(r, t, res)
         tracker = r.merger.tracker
         for when, text in tracker.take_events() if tracker is not None else ():
             self._emit("on_event", t, "info", f"{r.name}: {text} at {when:.1f} s")
@@ -316,6 +318,21 @@ class Simulation:
             self._consensus_told = True
             self._emit("on_event", t, "info", f"CONSENSUS: every robot holds the same global alignment (within "
                                               f"{CONSENSUS_TOL_DEG:g}° and one cell) at {t:.1f} s")
+
+    def _tell_assembly(self, r: Robot, t: float, res) -> None:
+        """The run log's lines on the consensus assembly (merger.team.consensus): a measurement newly rejected
+        or a map newly left out, with why; told when the robot's sets change, not every cycle."""
+        asm = getattr(res, "assembly", None)
+        if asm is None:
+            return
+        seen = self._assembly_told.setdefault(r.name, (set(), set()))
+        for label, why in asm.rejected.items():
+            if label not in seen[0]:
+                self._emit("on_event", t, "info", f"{r.name}: pair {label} rejected: {why}")
+        for name, why in asm.left_out.items():
+            if name not in seen[1]:
+                self._emit("on_event", t, "info", f"{r.name}: map {name} left out: {why}")
+        self._assembly_told[r.name] = (set(asm.rejected), set(asm.left_out))
 
     def run(self) -> RunResult:
         """Run to ``duration_s``. Ctrl-C stops the run at the end of the current tick (so every observer

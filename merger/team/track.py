@@ -47,7 +47,8 @@ RESEARCH_DEFAULT = "on_change"
 RESEARCH_PERIOD_S = 10.0  # Cartographer's global_constraint_search_after_n_seconds
 RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed since the last global search
 RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
-UNTRACKED_CHANGE_FACTOR = float(__import__("os").environ.get("UCF", "0.25"))  # a pair without an accepted answer is searched again at a quarter of research_change
+UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched again at a quarter of research_change
+# (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
 AGREE_DEG = 10.0  # two answers this close in angle and AGREE_M in translation are one hypothesis
 AGREE_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
 

@@ -277,3 +277,35 @@ def test_cycles_beside_the_next_tick_tell_the_same_events_in_the_same_order_as_o
     one, two = events("1"), events("2")
     assert sum(e[0] == "cycle" for e in one[0]) > 10
     assert one == two
+
+
+def test_the_assembly_s_rejections_reach_the_metrics_and_the_run_log_once(monkeypatch):
+    """Every tree cycle's consensus assembly (merger.team.consensus) is counted in the robot's metrics, and
+    a rejected pair is told in the run log when it is newly rejected, not at every cycle."""
+    import merger.team.tree as tree
+
+    real = tree.assemble
+
+    def with_a_rejection(*args, **kw):
+        a = real(*args, **kw)
+        a.rejected["X|Y"] = "inconsistent: injected"
+        return a
+
+    monkeypatch.setattr(tree, "assemble", with_a_rejection)
+    events, cycles = [], {}
+
+    class Collect(Observer):
+        def on_event(self, t, level, text):
+            events.append(text)
+
+        def on_merge_cycle(self, c):
+            cycles[c.robot] = cycles.get(c.robot, 0) + 1
+            assert c.result.assembly is not None and "X|Y" in c.result.assembly.rejected
+
+    d = Simulation(scene("hall4", "duration_s=5", "merger.strategy=tree"), [Collect()]).run().to_dict()
+    assert cycles and all(n > 1 for n in cycles.values())
+    for robot, n in cycles.items():
+        assert d["robots"][robot]["assembly_inconsistent"] >= n  # every cycle counted
+        told = [e for e in events if e.startswith(f"{robot}: pair X|Y rejected: inconsistent: injected")]
+        assert len(told) == 1  # told once
+        assert d["robots"][robot]["consistent_set"]

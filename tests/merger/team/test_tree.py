@@ -195,3 +195,40 @@ def test_an_edge_whose_search_found_a_better_alignment_beyond_the_window_refuses
     reuse[key] = dataclasses.replace(reuse[key], alignment=dataclasses.replace(edge, beyond_query=query))
     res = merge_tree(inputs, params, reuse=reuse)
     assert not res.accepted and res.reason.startswith("beyond the window") and res.top.accepted
+
+
+def _five_views(seed):
+    """Scene + five robots' partial maps 72° apart on a circle and their true rotations onto the first."""
+    from merger.synthetic import arc_viewpoints, partial_view, robot_pose_on_circle, room_scene
+    rng = np.random.default_rng(seed)
+    scene = room_scene(rng)
+    names, maps, poses = ["A", "B", "C", "D", "E"], [], []
+    for a in (90.0, 162.0, 234.0, 306.0, 18.0):
+        pose = robot_pose_on_circle(a, 1.8, yaw_offset_deg=rng.uniform(-40, 40))
+        maps.append(partial_view(scene, pose, arc_viewpoints(a, 30.0, 1.8), noise=0.002, rng=rng))
+        poses.append(pose)
+    truth = {n: math.degrees(p[2] - poses[0][2]) % 360 for n, p in zip(names, poses, strict=True)}
+    return names, maps, truth
+
+
+@pytest.mark.slow
+def test_an_injected_inconsistent_pair_is_rejected_named_and_the_team_still_placed():
+    """Five maps, every pair searched; one pair replaced by a wrong alignment verified with ν 0.99 (above any
+    bar): the other pairs outvote it, the cycle is accepted with every map placed right, and the assembly
+    names the wrong pair as inconsistent (the spanning tree made it a tree edge and rejected the cycle)."""
+    names, maps, truth = _five_views(5)
+    params = MergeParams(roi_m=8.0)
+    inputs = _inputs(names, maps, versions=[1] * 5)
+    reuse = {}
+    good = merge_tree(inputs, params, reuse=reuse)
+    assert good.accepted and good.assembly is not None and not good.assembly.rejected
+    key = _pair_key(inputs[1], inputs[3], params)
+    al = reuse[key].alignment
+    wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 150.0) % 360.0)
+    reuse[key] = PairResult(names[1], names[3], wrong, Verification(0.99, Counts(5000, 10), True))
+    res = merge_tree(inputs, params, reuse=reuse)
+    assert res.accepted and set(res.chosen.theta_deg) == set(names)
+    for n in names:
+        assert abs(angle_diff_deg(res.chosen.theta_deg[n], truth[n])) <= 1.0
+    assert set(res.assembly.rejected) == {"B|D"} and res.assembly.rejected["B|D"].startswith("inconsistent")
+    assert res.to_dict()["assembly"]["rejected"] == {"B|D": res.assembly.rejected["B|D"]}

@@ -1,0 +1,117 @@
+"""Benchmark: large teams (issue 43) — safety, speed and memory of the team assembly, against a baseline.
+
+Run from the repository root::
+
+    python benchmarks/bench_large_teams.py                                 # the default set below
+    python benchmarks/bench_large_teams.py --run lroom12:60:1,2,3 --run hall16:30:1
+    python benchmarks/bench_large_teams.py --baseline /tmp/old --run hall16:30:1   # the same runs on another checkout
+
+A run is SCENARIO:SECONDS:SEEDS — a bundled scenario or one of ``benchmarks/scenarios/`` (``lroom12``: 12
+robots in an L-shaped wall room written from the README's template, centers 0.2 m off; ``hall16``: 16
+robots, 20 × 14 m; ``hall32``: 32 robots, 26 × 20 m, 5 m circle; none tuned on), every merger setting
+default; ``hall8w`` is the bundled hall8 with ``merger.window_m=0.5`` and centers 0.15 m off. Each run is
+its own process, one after the other, so its resident memory is its own; ``--baseline DIR`` runs the
+same list with the code of the checkout DIR (e.g. ``git worktree add /tmp/old <commit>``) in the same
+invocation, so that ratios come from one machine state. Reported per run: false merges by kind (gross /
+other / drift-limited), robots that merged every teammate and the last first-merge time, refused correct
+cycles, the measurements the assembly rejected (inconsistent / impossible), the realtime factor (simulated
+/ wall seconds), the per-robot merge cycle cost (median, ms: what one robot alone would pay) and peak RSS.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ROOT / "benchmarks" / "scenarios"
+DEFAULT_RUNS = ["lroom12:60:1", "hall16:30:1", "hall32:20:1", "hall8w:60:1"]
+ALIASES = {"hall8w": ("hall8", ["merger.window_m=0.5", "center_error=0.15"])}
+
+
+def scenario_of(name: str):
+    base, extra = ALIASES.get(name, (name, []))
+    path = SCENARIOS / f"{base}.yaml"
+    return (str(path) if path.exists() else base), extra
+
+
+def child(name: str, duration: float, seed: int) -> dict:
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    src, extra = scenario_of(name)
+    sc = load_scenario(bundled_scenarios().get(src, src)).with_overrides(
+        [f"duration_s={duration}", f"seed={seed}", *extra])
+    t0 = time.perf_counter()
+    d = Simulation(sc).run().to_dict()
+    wall = time.perf_counter() - t0
+    robots = d["robots"].values()
+    firsts = [r["first_merge_s"] for r in robots if r["first_merge_s"] is not None]
+    rss = 0
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                rss = int(line.split()[1]) // 1024
+    cycle = d.get("merge_cycle_ms") or {}
+    return {"run": f"{name}:{duration:g}:{seed}", "robots": len(d["robots"]), "false": d["false_merges"],
+            "gross": d["gross_merges"], "drift": d["drift_limited_merges"],
+            "other": d["false_merges"] - d["gross_merges"] - d["drift_limited_merges"],
+            "merged": len(firsts), "first_max_s": max(firsts) if firsts else None,
+            "rejected_correct": d["rejected_correct"],
+            "inconsistent": sum(r.get("assembly_inconsistent", 0) for r in robots),
+            "impossible": sum(r.get("assembly_impossible", 0) for r in robots),
+            "realtime": duration / wall, "cycle_ms": cycle.get("median"), "rss_mb": rss}
+
+
+def run_one(code: Path, spec: str, seed: int) -> dict:
+    name, dur = spec.split(":")[:2]
+    env = dict(os.environ, PYTHONPATH=str(code))
+    out = subprocess.run([sys.executable, __file__, "--child", f"{name}:{dur}:{seed}"], env=env, cwd=code,
+                         capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        return {"run": f"{name}:{dur}:{seed}", "error": out.stderr.strip().splitlines()[-1:]}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def table(rows: list[dict], label: str) -> str:
+    head = ("run", "robots", "false", "gross", "other", "drift", "merged", "first_max_s", "rejected_correct",
+            "inconsistent", "impossible", "realtime", "cycle_ms", "rss_mb")
+    lines = [f"## {label}", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r['run']} | error: {r['error']} |")
+            continue
+        cells = [f"{r[k]:.2f}" if isinstance(r[k], float) else str(r[k]) for k in head]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", action="append", help="SCENARIO:SECONDS:SEED[,SEED...] (repeatable)")
+    ap.add_argument("--baseline", type=Path, help="another checkout to run the same list with")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        name, dur, seed = args.child.split(":")
+        print(json.dumps(child(name, float(dur), int(seed))))
+        return
+    specs = args.run or DEFAULT_RUNS
+    codes = [("this checkout", ROOT)] + ([("baseline " + str(args.baseline), args.baseline)] if args.baseline else [])
+    for label, code in codes:
+        rows = []
+        for spec in specs:
+            seeds = spec.split(":")[2] if spec.count(":") == 2 else "1"
+            for seed in seeds.split(","):
+                rows.append(run_one(code, spec, int(seed)))
+                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+        print(table(rows, label), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -4,12 +4,21 @@ Implements section 3.3 of the thesis ("Merging of Occupancy Grid Maps with Commo
 rotation search maximizing the modified similarity index ω̃ on a region of interest around the center,
 verification on the whole maps, three (in general N(N−1)/2) merge orders and the choice of the best
 verified one. numpy, OpenCV and numba kernels: no I/O in the algorithms (file formats live in :mod:`merger.io.mapio`).
+
+The one way to merge maps from Python is :func:`merge` (map files or grids, a center per map, any
+:class:`MergeParams` setting by name) → :class:`MergeResult` (the verdict in ``merger merge``'s words, each
+map's :class:`Pose` in the first map's frame, the merged map). :func:`search_pair` is the search alone,
+unverified; :class:`Cell` names the state codes ``OccupancyGrid.states`` holds (the ROS values are
+``ROS_UNKNOWN``, ``ROS_FREE``, ``ROS_OCCUPIED``).
 """
 
 from __future__ import annotations
 
+from .api import MergeResult, merge
 from .grid import ROS_FREE, ROS_OCCUPIED, ROS_UNKNOWN, Cell, OccupancyGrid
+from .inputs import MergeInputError
 from .measures import Counts, Similarity, birk_carpin, ncc, similarity_index
+from .pose import Pose
 from .search import SEARCH_METHODS, Alignment, RotationProblem, register_method, search
 from .settings import DEFAULT_MEASURE, DEFAULT_ROI_M, DEFAULT_WINDOW_M, ROI_MIN_SUPPORT
 from .team.online import MapMessage, TeamMerger
@@ -19,18 +28,23 @@ from .team.superpose import fuse, superpose
 from .team.verify import Verification, verify
 
 __all__ = [
+    "merge", "MergeResult", "MergeInputError", "Pose",
     "Cell", "ROS_FREE", "ROS_OCCUPIED", "ROS_UNKNOWN", "OccupancyGrid", "MapMessage", "TeamMerger", "SEARCH_METHODS",
     "Alignment", "RotationProblem", "register_method", "search", "Counts", "Similarity", "birk_carpin",
     "ncc", "similarity_index", "fuse", "superpose", "MapInput", "MergeParams", "OrderResult",
-    "TeamMergeResult", "merge_orders", "merge_team", "Verification", "verify", "align", "load_map",
+    "TeamMergeResult", "merge_orders", "merge_team", "Verification", "verify", "search_pair", "align", "load_map",
     "save_map",
 ]
 
 
-def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None, roi_m: float = DEFAULT_ROI_M,
-          measure: str = DEFAULT_MEASURE, method: str = DEFAULT_METHOD, window_m: float = DEFAULT_WINDOW_M,
-          refine: bool = DEFAULT_REFINE, roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
-    """Find the rotation θ (and translation t) of ``moving`` about its center onto ``ref``.
+def search_pair(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_moving=None,
+                roi_m: float = DEFAULT_ROI_M, measure: str = DEFAULT_MEASURE, method: str = DEFAULT_METHOD,
+                window_m: float = DEFAULT_WINDOW_M, refine: bool = DEFAULT_REFINE,
+                roi_min_support: int = ROI_MIN_SUPPORT) -> Alignment:
+    """The search's answer for one pair: the rotation θ (and translation t) of ``moving`` about its center
+    onto ``ref`` that maximizes the measure on the ROI — **not verified** (no whole-map check, no ambiguity
+    rule, no guard). To merge maps, verified, use :func:`merge` (what ``merger merge`` and ``merger align``
+    run).
 
     Every default is a merge's (:class:`MergeParams` reads the same constants); each value is checked by its
     setting's one rule when the :class:`RotationProblem` is built (``method`` by :func:`search`).
@@ -64,6 +78,16 @@ def align(ref: OccupancyGrid, moving: OccupancyGrid, *, center_ref, center_movin
     problem = RotationProblem(ref, moving, tuple(map(float, center_ref)), tuple(map(float, cm)), roi_m, measure,
                               window_m, refine, roi_min_support)
     return search(problem, method)
+
+
+def align(*args, **kwargs) -> Alignment:
+    """The old name of :func:`search_pair` (the unverified search; ``merger align`` on the command line
+    runs every check, as :func:`merge`): warns, then answers as :func:`search_pair`."""
+    import warnings
+
+    warnings.warn("merger.align is the unverified search, now named merger.search_pair; merger.merge verifies",
+                  DeprecationWarning, stacklevel=2)
+    return search_pair(*args, **kwargs)
 
 
 def load_map(path):

@@ -17,12 +17,16 @@ import json
 import math
 import re
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from .algorithms import ALGORITHMS
 from .algorithms import DEFAULT as DEFAULT_ALGORITHM
+from .api import merge_inputs, prepare, result_of
+from .inputs import MergeInputError
+from .io.inputs import map_names as _map_names
 from .io.mapio import (
     CENTERS_FILE,
     centers_yaml,
@@ -46,7 +50,8 @@ from .team.orders import MapInput, MergeParams, merge_team
 from .team.params import RULES, VERIFICATIONS
 from .team.pool import threads
 from .team.verify import no_evidence
-from .transform import resample, rotation
+from .transform import rotation
+from .verdict import RULE_NAMES, evidence_text, refusal, rule_of
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -101,18 +106,6 @@ def parse_xy(text: str, what: str) -> tuple[float, float]:
     if not (math.isfinite(x) and math.isfinite(y)):
         raise UsageError(f"{what}: expected finite numbers, got {text!r}")
     return x, y
-
-
-def check_center(grid, center, roi_m: float, what: str, path) -> None:
-    """A common center must lie within half the ROI side of its map's extent: beyond, the ROI holds none
-    of the map (a typo, or a center in another frame), and the canvas of the merged maps would span the
-    distance (``--center 1e7,0`` asked for 46 GiB)."""
-    x0, x1, y0, y1 = grid.extent
-    m = roi_m / 2
-    if not (x0 - m <= center[0] <= x1 + m and y0 - m <= center[1] <= y1 + m):
-        raise UsageError(f"{what}: ({center[0]:g}, {center[1]:g}) is outside {path}, which spans x [{x0:g}, "
-                         f"{x1:g}], y [{y0:g}, {y1:g}] m: expected a point within {m:g} m (half the --roi) of "
-                         "the map, in its frame")
 
 
 def check_roi(roi_m: float, resolution: float, path) -> None:
@@ -243,7 +236,7 @@ def params_from(args) -> MergeParams:
     one-line error); MergeParams's own ValueError is the last line of defence."""
     values = {name: getattr(args, dest) for name, (_, dest) in OPTIONS.items() if hasattr(args, dest)}
     try:
-        roi_rule(args.roi, key="--roi", limits=True)  # the ROI's rule with the inputs' limits
+        roi_rule(args.roi, key="--roi", limits=True)  # the ROI's rule with the inputs' limits (merger.inputs)
         for name, v in values.items():
             RULES[name](v, OPTIONS[name][0])
         check_window(args.window, args.roi, "--window", "the --roi side")  # the rule between the two
@@ -275,13 +268,12 @@ def cmd_align(args) -> int:
     params = params_from(args)
     c_ref = parse_xy(args.center, "--center")
     c_mov = parse_xy(args.center_moving, "--center-moving") if args.center_moving else c_ref
-    ref, mov = load_map(args.ref), load_map(args.moving)
-    (mov,), notes = same_resolution([args.ref, args.moving], [ref, mov])
-    check_roi(params.roi_m, ref.resolution, args.ref)
-    check_center(ref, c_ref, params.roi_m, "--center", args.ref)
-    check_center(mov, c_mov, params.roi_m, "--center-moving" if args.center_moving else "--center", args.moving)
     names = pair_names(args.ref, args.moving)
-    res = merge_team([MapInput(names[0], ref, c_ref), MapInput(names[1], mov, c_mov)], params, orders=[(0, 1)])
+    moving_key = "--center-moving" if args.center_moving else "--center"
+    with options_named({"centers[0]": "--center", "centers[1]": moving_key}):
+        maps, params, notes = prepare([args.ref, args.moving], [c_ref, c_mov], names=names, **asdict(params))
+    merged = merge_inputs(maps, params, notes)
+    res = merged.team
     o = res.top
     al = o.steps[0][1]
     where = {"ref": str(args.ref), "moving": str(args.moving), "center_ref": list(c_ref),
@@ -298,7 +290,8 @@ def cmd_align(args) -> int:
     out = {**al.to_dict(), **where, "verdict": "accepted" if res.accepted else "rejected", "rule": res.rule,
            "reason": res.reason,
            "verification": {**v.to_dict(), "nu_min": params.nu_min, "min_support": params.min_support,
-                            "accepted": v.passed}}
+                            "accepted": v.passed}, "decided_by": merged.rule,
+           "pose": merged.poses[names[1]].to_dict(), "search_pose": merged.search_poses[names[1]].to_dict()}
     if res.chosen is not None and res.chosen.search_theta_deg:  # accepted by the contrast rule: refined
         out["refined_placement"] = {"theta_deg": res.chosen.theta_deg[names[1]],
                                     "translation_m": list(res.chosen.translation(names[1]))}
@@ -334,49 +327,61 @@ def cmd_align(args) -> int:
         r = out["refined_placement"]
         print(f"refined      {r['theta_deg']:9.2f} deg, t {_xy(r['translation_m'])} m   (the placement refined on the "
               f"whole maps, where `merger merge` draws the merged map)")
+    p = merged.poses[names[1]]
+    print(f"pose         x {p.x:+.3f} m, y {p.y:+.3f} m, yaw {p.yaw_deg:.2f} deg   (MOVING's frame in REF's: "
+          "p_ref = R(yaw) p_moving + (x, y)" + ("" if res.accepted else "; rejected") + ")")
     return 0 if res.accepted else 1
 
 
 def map_names(paths: list[Path]) -> list[str]:
-    """One distinct name per map: its file stem (``Lyon.yaml`` → ``Lyon``), or, when stems repeat (three
-    maps all saved as map_saver's ``map.yaml``), as many trailing path parts as make them distinct
-    (``r1/map``, ``r2/map``). The same file twice is refused."""
-    resolved = [p.resolve() for p in paths]
-    for i, r in enumerate(resolved):
-        if r in resolved[:i]:
-            raise UsageError(f"merge: {paths[i]} is given twice (expected distinct maps)")
-    parts = [p.with_suffix("").parts for p in resolved]
-    for k in range(1, max(map(len, parts)) + 1):
-        names = ["/".join(q[-k:]) for q in parts]
-        if len(set(names)) == len(names):
-            return names
-    raise UsageError("merge: cannot name the maps distinctly")  # pragma: no cover - resolved paths differ
+    """One distinct name per map file (:func:`merger.io.inputs.map_names`)."""
+    with options_named({}):
+        return _map_names(paths)
 
 
-def merge_inputs(paths: list[Path], centers: list[str], roi_m: float) -> list[MapInput]:
+class options_named:
+    """Within it, a :class:`~merger.inputs.MergeInputError` becomes a :class:`UsageError` naming the input by
+    this command line's option: ``keys`` maps the library's keys (``centers[1]``) to options, the merge
+    settings are named by :data:`OPTIONS`, ``maps`` by ``merge``."""
+
+    def __init__(self, keys: dict[str, str]) -> None:
+        self.keys = {"maps": "merge", "centers": "--center", **{k: o for k, (o, _) in OPTIONS.items()}, **keys}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, e, tb):
+        if isinstance(e, MergeInputError):
+            raise UsageError(str(e.named(self.keys.get(e.key, e.key)))) from None
+        return False
+
+
+def center_keys(centers: list) -> dict[str, str]:
+    """How ``merger merge`` names each map's center: ``--center``, or ``--center (map i)`` when they differ."""
+    one = len(set(centers)) == 1
+    return {f"centers[{i}]": "--center" if one else f"--center (map {i + 1})" for i in range(len(centers))}
+
+
+def centers_of(centers: list[str], n: int, what: str = "map") -> list[tuple[float, float]]:
+    """--center once for all maps or once per map, each X,Y."""
+    if len(centers) not in (1, n):
+        raise UsageError(f"--center: expected once or once per {what} ({n}), got {len(centers)}")
+    return [parse_xy(c, "--center") for c in centers] * (n if len(centers) == 1 else 1)
+
+
+def file_inputs(paths: list[Path], centers: list[str], params: MergeParams):
+    """The maps of ``merger merge FILE...``, checked by :func:`merger.api.prepare`: (MapInput list, notes)."""
     if len(paths) < 2:
         raise UsageError("merge: expected at least two maps (map_server YAML files, or --bag BAG --topics ...)")
-    if len(centers) not in (1, len(paths)):
-        raise UsageError(f"--center: expected once or once per map ({len(paths)}), got {len(centers)}")
-    cs = [parse_xy(c, "--center") for c in centers] * (len(paths) if len(centers) == 1 else 1)
-    names = map_names(paths)
-    grids = [load_map(p) for p in paths]
-    rest, notes = same_resolution(paths, grids)
-    grids = [grids[0], *rest]
-    check_map_centers(paths, grids, cs, roi_m)
-    return [MapInput(n, g, c) for n, g, c in zip(names, grids, cs, strict=True)], notes
+    cs = centers_of(centers, len(paths))
+    with options_named(center_keys(cs)):
+        maps, _, notes = prepare(paths, cs, **asdict(params))
+    return maps, notes
 
 
-def check_map_centers(paths, grids, centers, roi_m: float) -> None:
-    """Each map's center near its map (:func:`check_center`), and --roi within the cell limit."""
-    for i, (p, g, c) in enumerate(zip(paths, grids, centers, strict=True)):
-        check_center(g, c, roi_m, "--center" if len(set(centers)) == 1 else f"--center (map {i + 1})", p)
-    check_roi(roi_m, grids[0].resolution, paths[0])
-
-
-def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str],
-               roi_m: float) -> list[MapInput]:
-    """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot."""
+def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: list[str], params: MergeParams):
+    """``--bag BAG --topics /r1/map,/r2/map``: the last map of each topic, named by its robot, checked by
+    :func:`merger.api.prepare`."""
     from .io.bagio import read_bag_maps, topic_names
 
     if maps:
@@ -386,63 +391,12 @@ def bag_inputs(bag: Path, topics_arg: str | None, maps: list[Path], centers: lis
         raise UsageError(f"--topics: expected at least two map topics T1,T2,..., got {topics_arg!r}")
     if len(set(topics)) != len(topics):
         raise UsageError(f"--topics: a topic is given twice in {topics_arg!r}")
-    if len(centers) not in (1, len(topics)):
-        raise UsageError(f"--center: expected once or once per topic ({len(topics)}), got {len(centers)}")
-    cs = [parse_xy(c, "--center") for c in centers] * (len(topics) if len(centers) == 1 else 1)
+    cs = centers_of(centers, len(topics), "topic")
     grids = read_bag_maps(bag, topics)
-    where = [f"{bag}:{t}" for t in topics]
-    rest, notes = same_resolution(where, [grids[t] for t in topics])
-    placed = [grids[topics[0]], *rest]
-    check_map_centers(where, placed, cs, roi_m)
-    return [MapInput(n, g, c) for n, g, c in zip(topic_names(topics), placed, cs, strict=True)], notes
-
-
-def same_resolution(paths: list, grids) -> tuple[list, list[str]]:
-    """``grids[1:]`` on the first map's cells (:func:`merger.transform.resample`, whose docstring gives the
-    rule for the three states), and one note per resampled map; both ``align`` and ``merge`` use it. A
-    resampled map larger than the map limits is refused."""
-    r0, out, notes = grids[0].resolution, [], []
-    for p, g in zip(paths[1:], grids[1:], strict=True):
-        if not math.isclose(g.resolution, r0, rel_tol=1e-6):
-            h, w = (round(n * g.resolution / r0) for n in g.shape)
-            if h * w > MAX_MAP_CELLS or max(h, w) > MAX_MAP_SIDE:
-                raise UsageError(f"{p}: resolution {g.resolution:g} m per cell, {paths[0]} has {r0:g}: on "
-                                 f"{r0:g} m cells it would be {w} x {h} cells, beyond the limit of "
-                                 f"{MAX_MAP_CELLS:,} cells ({MAX_MAP_SIDE} a side); give the finer map first")
-            notes.append(f"{p}: resampled from {g.resolution:g} to {r0:g} m per cell, the first map's "
-                         "(occupied where any occupied cell falls, free where free cells cover half a cell; "
-                         "docs/real-maps.md)")
-            g = resample(g, r0)
-        out.append(g)
-    return out, notes
-
-
-RULE_NAMES = {"verification": "verification", "no_evidence": "no evidence", "ambiguity": "the ambiguity rule",
-              "guard": "the guard beyond the window"}
-
-
-def evidence_text(v, label: str = "") -> str:
-    """The figures of the rule that verified a pair, read from its :class:`~merger.team.verify.Verification`:
-    the contrast, its fit, rival and support when the contrast rule decided (ν then only for the record),
-    else ν and its support."""
-    name = f"{label} " if label else ""
-    k = v.contrast
-    if k is not None and math.isnan(k.best):  # refused on its support before any fit (evidence.contrast)
-        return f"{name}{k.support} cells under the contrast rule; ν {v.nu:.2f}"
-    if k is not None:
-        rival = (f"rival {k.rival:.3f} at {k.rival_at[0]:+.0f}°" if k.rival > 0 and math.isfinite(k.rival_at[0])
-                 else "rival not computed (the fit's angle already refuses)" if math.isnan(k.rival) else "no rival")
-        contrast = "–" if math.isnan(k.contrast) else f"{k.contrast:.2f}"
-        return f"{name}contrast {contrast} (fit {k.best:.3f} vs {rival}, {k.support} cells; ν {v.nu:.2f})"
-    return f"{name}ν {v.nu:.3f} ({v.support} cells)"
-
-
-def rule_of(checks) -> str:
-    """The verification rule the checks ran: "contrast" when they carry contrast evidence, else "whole-map ν"."""
-    checks = list(checks)
-    if not checks:
-        return "the algorithm's own rule (merger.algorithms)"
-    return "contrast" if any(v.contrast is not None for v in checks) else "whole-map ν"
+    with options_named(center_keys(cs)):
+        placed, _, notes = prepare([grids[t] for t in topics], cs, names=topic_names(topics),
+                                   labels=[f"{bag}:{t}" for t in topics], **asdict(params))
+    return placed, notes
 
 
 def order_mark(o, res) -> str:
@@ -456,28 +410,30 @@ def order_mark(o, res) -> str:
     return f"verified, but the cycle is rejected by {RULE_NAMES[res.rule]} (below)"
 
 
-def verdict_line(res) -> str:
-    """The cycle's verdict: the chosen order and the rule that accepted it, or the rule that refused it and
-    its figures."""
-    if res.chosen is not None:
-        ev = "; ".join(evidence_text(v, k) for k, v in res.chosen.checks.items())  # none: merger.algorithms
-        return f"chosen: {'→'.join(res.chosen.order)} (accepted by {rule_of(res.chosen.checks.values())}" \
-            + (f": {ev})" if ev else ")")
-    return f"REJECTED by {refusal(res)}"
+def verdict_line(merged) -> str:
+    """The cycle's verdict (a :class:`~merger.api.MergeResult`): the chosen order and the rule that accepted
+    it with its figures, or the rule that refused it and its figures."""
+    if merged.accepted:
+        return f"chosen: {'→'.join(merged.team.chosen.order)} (accepted by {merged.rule}" \
+            + (f": {merged.reason})" if merged.reason else ")")
+    return f"REJECTED by {merged.rule}: {merged.reason}"
 
 
-def refusal(res) -> str:
-    """The rule that refused a cycle and its figures: "the guard beyond the window: ..." (the reason without
-    the rule's own prefix)."""
-    reason = res.reason
-    for prefix in ("beyond the window: ", "ambiguous: "):
-        reason = reason.removeprefix(prefix)
-    return f"{RULE_NAMES[res.rule]}: {reason}"
+def pose_lines(merged) -> list[str]:
+    """Each map's pose in the first map's frame (p_first = R(yaw)·p + (x, y)): what a tf needs."""
+    word = "" if merged.accepted else " (the best rejected hypothesis)"
+    return [f"pose{word}: {n} in {merged.frame}'s frame: x {p.x:+.3f} m, y {p.y:+.3f} m, yaw {p.yaw_deg:.2f}°"
+            for n, p in merged.poses.items() if n != merged.frame]
 
 
-def report_merge(res, as_json: bool, extra: dict | None = None) -> None:
+def report_merge(merged, as_json: bool, extra: dict | None = None) -> None:
+    """Print a merge (a :class:`~merger.api.MergeResult`): every order, the verdict, each map's pose."""
+    res = merged.team
     if as_json:
-        print(json.dumps({**res.to_dict(), **(extra or {})}))
+        print(json.dumps({**res.to_dict(), "decided_by": merged.rule,
+                          "poses": {k: p.to_dict() for k, p in merged.poses.items()},
+                          "search_poses": {k: p.to_dict() for k, p in merged.search_poses.items()},
+                          **(extra or {})}))
         return
     for o in res.orders:  # two lines per order: verdict, then each map's placement onto the first map
         ev = ", ".join(evidence_text(v, k) for k, v in o.checks.items())
@@ -490,7 +446,9 @@ def report_merge(res, as_json: bool, extra: dict | None = None) -> None:
             print("      the search's: " + "; ".join(f"{k} {v:.2f}° t ({st[k][0]:+.3f}, {st[k][1]:+.3f}) m"
                                                   for k, v in o.search_theta_deg.items() if k != res.frame)
                   + " (refined on the whole maps to the line above)")
-    print(f"merge cycle {res.wall_ms:.0f} ms; {verdict_line(res)}")
+    print(f"merge cycle {res.wall_ms:.0f} ms; {verdict_line(merged)}")
+    for line in pose_lines(merged):
+        print(line)
 
 
 def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path, bytes]:
@@ -578,20 +536,16 @@ def cmd_merge(args) -> int:
         from .io.bagio import check_outputs_outside
 
         check_outputs_outside(args.bag, {y: "-o", img: "-o", overlay_path(y): "-o"})
-    maps, notes = (bag_inputs(args.bag, args.topics, args.maps, args.center, params.roi_m) if args.bag
-                   else merge_inputs(args.maps, args.center, params.roi_m))
+    maps, notes = (bag_inputs(args.bag, args.topics, args.maps, args.center, params) if args.bag
+                   else file_inputs(args.maps, args.center, params))
     ensure_output_dir(out.parent, "-o")
     if not args.json:
         for note in notes:
             print(f"note: {note}")
     # two maps: the second searched onto the first, as `merger align FIRST SECOND` does (same checks, same answer)
-    if args.algorithm == "thesis":
-        res = merge_team(maps, params, orders=[(0, 1)] if len(maps) == 2 else None)
-    else:
-        from .algorithms import merge_every_map
-
-        res = merge_every_map(args.algorithm, maps, params)
-    report_merge(res, args.json, {"resampled": notes})
+    merged = merge_inputs(maps, params, notes, args.algorithm)
+    res = merged.team
+    report_merge(merged, args.json, {"resampled": notes})
     written = write_merge(res, maps, out, args.force and all(m.name in res.top.theta_deg for m in maps))
     if not args.json:
         print("wrote " + ", ".join(map(str, written)) if written else
@@ -680,7 +634,7 @@ def cmd_demo(args) -> int:
     # x_0 = ĉ_0 + t*_k + R(θ*_k)(x_k − ĉ_k) with ĉ = c + e: t*_k = R(θ*_k) e_k − e_0
     truth_t = {n: tuple(rotation(truth[n]) @ e - errs[0]) for n, e in zip(names, errs, strict=True)}
     res = merge_team(maps, params)
-    report_merge(res, args.json)
+    report_merge(result_of(res, maps), args.json)
     command = merge_command([out / f"{n}.yaml" for n in names], [m.center for m in maps], out / "remerged",
                             params)
     entries = {n: {"map": f"{n}.yaml", "center": list(m.center), "center_true": [float(c[0]), float(c[1])],

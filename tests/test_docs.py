@@ -3,6 +3,7 @@ scenario template and pytest guard run as printed."""
 
 import re
 
+import pytest
 import yaml
 
 from tests.paths import REPO
@@ -55,3 +56,47 @@ def test_readme_pytest_guard_runs():
     tests = [f for name, f in namespace.items() if name.startswith("test_")]
     assert len(tests) == 1
     tests[0]()
+
+
+def python_examples():
+    """Every ```python block of the README and docs/ as (page, index, code)."""
+    out = []
+    for page in [README, *sorted((ROOT / "docs").rglob("*.md"))]:
+        for k, code in enumerate(re.findall(r"```python\n(.*?)```", page.read_text(), re.S)):
+            out.append(pytest.param(page, code, id=f"{page.relative_to(ROOT)}#{k + 1}"))
+    return out
+
+
+@pytest.mark.parametrize(("page", "code"), python_examples())
+def test_every_python_example_in_the_docs_runs(page, code, tmp_path, monkeypatch, capsys):
+    """Each example runs as printed: from the shared real maps' folder for the pages on real maps (they name
+    its files), from an empty folder otherwise. What the real-map example prints is checked against the
+    Halmstad truth (gt_pairs.csv: E5_01's frame in E5_02's, good to its RMS)."""
+    from tests.realdata import DATA, MISSING, have_data
+
+    if page.name == "real-maps.md":
+        if not have_data():
+            pytest.skip(MISSING)
+        monkeypatch.chdir(DATA)
+    else:
+        monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "__doc_example__"}
+    exec(compile(code, str(page), "exec"), namespace)  # noqa: S102 - the docs' own example
+    out = capsys.readouterr().out
+    if page.name == "real-maps.md":
+        import csv
+        import math
+
+        from merger import Pose
+
+        res = namespace["res"]
+        assert res.accepted and out.startswith(f"accepted by {res.rule} - ")
+        row = next(r for r in csv.DictReader(open(DATA / "halmstad" / "gt_pairs.csv"))
+                   if (r["map_a"], r["map_b"]) == ("E5_01", "E5_02"))
+        truth = Pose(float(row["tx_m"]), float(row["ty_m"]), float(row["theta_deg"]) % 360)
+        rms_m = float(row["rms_px"]) * float(row["tx_m"]) / float(row["tx_px"])
+        got = res.poses["E5_01"]
+        assert abs((got.yaw_deg - truth.yaw_deg + 180) % 360 - 180) <= 3.0
+        center = (48.6, 41.4)  # where the common center lands: the truth's tolerance (tests/realdata.py)
+        assert math.dist(got.apply(center), truth.apply(center)) <= 0.5 + rms_m
+        assert f"E5_01 in E5_02's frame: x {got.x:+.3f} m, y {got.y:+.3f} m, yaw {got.yaw_deg:.2f} deg" in out

@@ -31,7 +31,7 @@ def whole_map_nu(ga, ca, gb, cb, th):
 
 def test_pillars_give_a_180_degree_runner_up(pillar_views):
     ga, ca, gb, cb, theta = pillar_views
-    al = merger.align(ga, gb, center_ref=ca, center_moving=cb, roi_m=4.0, method="reference")
+    al = merger.search_pair(ga, gb, center_ref=ca, center_moving=cb, roi_m=4.0, method="reference")
     peaks = sorted([al.theta_deg, al.runner_up_deg])
     assert abs(angle_diff_deg(peaks[1] - peaks[0], 180.0)) <= 2.0
     # one of the two peaks is the truth, and the two are nearly as good

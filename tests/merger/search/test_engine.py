@@ -200,10 +200,10 @@ def test_the_support_floor_gives_no_answer_on_a_handful_of_cells_in_every_method
 
 
 def test_merge_cycles_and_align_call_an_roi_without_evidence_so():
-    from merger import MapInput, MergeParams, align, merge_team
+    from merger import MapInput, MergeParams, merge_team, search_pair
 
     empty = OccupancyGrid(np.full((40, 40), FREE_S, np.uint8), 0.05, (-1.0, -1.0))
-    al = align(empty, empty, center_ref=(0.0, 0.0), roi_m=1.0, window_m=0.1)
+    al = search_pair(empty, empty, center_ref=(0.0, 0.0), roi_m=1.0, window_m=0.1)
     assert not al.has_evidence and al.score == 0.0
     res = merge_team([MapInput("a", empty, (0.0, 0.0)), MapInput("b", empty, (0.0, 0.0))],
                      MergeParams(roi_m=1.0, window_m=0.1, min_support=0))

@@ -46,7 +46,7 @@ def test_reference_recovers_rotation_of_independent_views(seed, theta, arc_shift
     frame_b = (rng.uniform(-1, 1), rng.uniform(-1, 1), yaw_a + math.radians(theta))
     ga, ca = partial_view(scene, frame_a, arc_viewpoints(a0, 30, 1.8), noise=0.002, rng=rng)
     gb, cb = partial_view(scene, frame_b, arc_viewpoints(a0 + arc_shift, 30, 1.8), noise=0.002, rng=rng)
-    al = merger.align(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, method="reference")
+    al = merger.search_pair(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, method="reference")
     assert abs(angle_diff_deg(al.theta_deg, theta)) <= 0.5
     assert al.score > al.runner_up_score
     assert al.profile.shape == (360,)
@@ -75,5 +75,5 @@ def test_reference_recovers_known_rotation_of_a_map(seed, theta, roi, shift):
     flip = rng.choice(known, size=known.size // 500, replace=False)
     s.ravel()[flip] = np.where(s.ravel()[flip] == FREE_S, OCCUPIED_S, FREE_S)
     gb = OccupancyGrid(s, 0.05, target.origin)
-    al = merger.align(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, method="reference")
+    al = merger.search_pair(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, method="reference")
     assert abs(angle_diff_deg(al.theta_deg, theta)) <= 0.5

@@ -110,7 +110,7 @@ def test_window_zero_is_the_thesis_search_bit_for_bit(seed):
         assert sub_cell.window_cells == 0
         results = [search(zero, "reference"), search(zero, "fast"), search(plain, "reference"),
                    search(plain, "fast"), search(sub_cell, "fast"),
-                   merger.align(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, measure=m, window_m=0,
+                   merger.search_pair(ga, gb, center_ref=ca, center_moving=cb, roi_m=roi, measure=m, window_m=0,
                                 refine=False)]
         for al in results:
             assert (al.theta_deg, al.score, al.counts) == (theta, sim.value, sim.counts), (seed, m, al.method)
@@ -195,7 +195,7 @@ def test_problem_with_non_finite_centers_is_a_value_error(which, bad):
         with pytest.raises(ValueError, match=which):
             RotationProblem(g, g, kw["center_ref"], kw["center_moving"], 4.0, window_m=0.5)
         with pytest.raises(ValueError):
-            merger.align(g, g, center_ref=kw["center_ref"], center_moving=kw["center_moving"], roi_m=4.0)
+            merger.search_pair(g, g, center_ref=kw["center_ref"], center_moving=kw["center_moving"], roi_m=4.0)
 
 
 # --- 3. the exact evaluator ----------------------------------------------------------------------------
@@ -314,7 +314,7 @@ def test_windowed_search_on_a_map_smaller_than_the_roi():
     s[::7, ::5] = 2
     g = OccupancyGrid(s, 0.05)
     p = RotationProblem(g, g, (2.5, 2.5), (2.5, 2.5), 8.0, "similarity", 0.5)
-    al = merger.align(g, g, center_ref=(2.5, 2.5))
+    al = merger.search_pair(g, g, center_ref=(2.5, 2.5))
     assert close_to_zero_deg(al.theta_deg) and max(map(abs, al.translation_m)) <= 1e-9
     grid = search(p, "fast")
     assert grid.score == 1.0 and grid.translation_m == (0.0, 0.0)
@@ -375,11 +375,11 @@ def test_a_map_aligned_with_itself_is_the_identity():
     grid_not_zero = 0
     for g, c in _self_cases():
         for roi in (8.0, 4.0):
-            al = merger.align(g, g, center_ref=c, roi_m=roi)  # fast, window 0.5 m, refined
+            al = merger.search_pair(g, g, center_ref=c, roi_m=roi)  # fast, window 0.5 m, refined
             assert al.refined and al.window_m == 0.5
             assert close_to_zero_deg(al.theta_deg), (c, roi, al.theta_deg)
             assert max(abs(v) for v in al.translation_m) <= 1e-9, al.translation_m
-            grid = merger.align(g, g, center_ref=c, roi_m=roi, refine=False)
+            grid = merger.search_pair(g, g, center_ref=c, roi_m=roi, refine=False)
             assert grid.score == 1.0 and grid.translation_m == (0.0, 0.0)
             assert abs(angle_diff_deg(grid.theta_deg, 0.0)) <= 1.0  # the plateau of equal scores about 0°
             assert (al.theta_grid_deg, al.translation_grid_m) == (grid.theta_deg, grid.translation_m)
@@ -455,7 +455,7 @@ def test_without_the_window_the_same_rough_centers_cost_the_rotation():
     errors = []
     for kind, seed in RECOVERY[::3]:
         c = window_case(seed, kind, roi_m=(8.0, 8.0), window_m=(0.5, 0.5), error_frac=0.8)
-        al = merger.align(c.ref, c.moving, center_ref=c.center_ref, center_moving=c.center_moving, window_m=0.0)
+        al = merger.search_pair(c.ref, c.moving, center_ref=c.center_ref, center_moving=c.center_moving, window_m=0.0)
         assert al.translation_m == (0.0, 0.0)
         errors.append(abs(angle_diff_deg(al.theta_deg, c.theta_deg)))
     assert sum(e > 0.5 for e in errors) >= 6, errors
@@ -533,7 +533,7 @@ def test_rough_center_recovered_on_real_map_views(office, where, yaws, arc):
     truth = math.degrees(p2[2] - p1[2]) % 360
     for e in OFFICE_E:
         cm = (c2[0] + e[0], c2[1] + e[1])
-        al = merger.align(g1, g2, center_ref=c1, center_moving=cm)  # fast, ROI 8 m, window 0.5 m, refined
+        al = merger.search_pair(g1, g2, center_ref=c1, center_moving=cm)  # fast, ROI 8 m, window 0.5 m, refined
         want_t = rotation(truth) @ np.asarray(e)
         assert abs(angle_diff_deg(al.theta_deg, truth)) <= 0.5, (e, al.theta_deg, truth)
         assert math.dist(al.translation_m, want_t) <= 0.05, (e, al.translation_m, want_t)

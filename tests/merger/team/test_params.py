@@ -23,7 +23,7 @@ def test_the_value_types_live_in_params_and_keep_their_old_paths():
 
 def test_window_and_roi_have_one_default_everywhere():
     g = OccupancyGrid(np.zeros((4, 4), np.uint8))
-    align = inspect.signature(merger.align).parameters
+    align = inspect.signature(merger.search_pair).parameters
     for roi, window in ((params.MergeParams().roi_m, params.MergeParams().window_m),
                         (RotationProblem(g, g, (0, 0), (0, 0)).roi_m, RotationProblem(g, g, (0, 0), (0, 0)).window_m),
                         (align["roi_m"].default, align["window_m"].default)):
@@ -53,7 +53,7 @@ def test_every_setting_has_one_default_shared_by_align_and_the_search():
     RotationProblem's refine and floor are the thesis's plain problem, and a merge passes its own."""
     g = OccupancyGrid(np.zeros((4, 4), np.uint8))
     d, prob = params.MergeParams(), RotationProblem(g, g, (0, 0), (0, 0))
-    align = inspect.signature(merger.align).parameters
+    align = inspect.signature(merger.search_pair).parameters
     for name in ("roi_m", "measure", "method", "window_m", "refine", "roi_min_support"):
         assert align[name].default == getattr(d, name), name
     assert (prob.roi_m, prob.measure, prob.window_m) == (d.roi_m, d.measure, d.window_m) == (8.0, "similarity", 0.5)

@@ -1,5 +1,5 @@
-"""Real maps with their ground truth (the data in ../shared/data/real-maps, read in place: licences): the
-cases of ``benchmarks/real_maps.py`` and of the tests that need the data (which skip when it is absent).
+"""Real maps with their ground truth (the data in ``$CIRCSIM_REAL_MAPS``, by default ../shared/data/real-maps
+beside the checkout, read in place: licences): the cases of ``benchmarks/real_maps.py`` and of the tests that need the data (which skip when it is absent).
 
 Cases. Every ordered pair of one Halmstad building (ground truth: gt_pairs.csv, ±2–3°, ±0.5 m), at each
 center error and ROI side; A.P. Hill's six pairs, the UC Merced runs and the demo pair, which have no
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -28,7 +29,26 @@ from merger.io.mapio import load_map
 from merger.search import angle_diff_deg
 from merger.transform import rotation
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-maps"  # beside the checkout
+ENV = "CIRCSIM_REAL_MAPS"  # the folder holding halmstad/, carpin-ucmerced/, sunil-demo/ (default: beside the checkout)
+
+
+def data_folder(environ=os.environ) -> Path:
+    """The shared real maps' folder: ``$CIRCSIM_REAL_MAPS``, else ``../shared/data/real-maps`` beside the
+    checkout (where the project's machines keep it)."""
+    if environ.get(ENV):
+        return Path(environ[ENV]).expanduser()
+    return Path(__file__).resolve().parents[2] / "shared" / "data" / "real-maps"
+
+
+DATA = data_folder()
+MISSING = (f"the shared real maps are not at {DATA} (no halmstad/gt_pairs.csv): set {ENV} to the folder "
+           "holding them (their licences keep them out of the repository: docs/merging-real-maps.md)")
+
+
+def have_data() -> bool:
+    return (DATA / "halmstad" / "gt_pairs.csv").exists()
+
+
 THETA_TOL_DEG = 3.0  # a placement is correct within this angle ...
 CENTER_TOL_M = 0.5  # ... and with the true center placed within this distance (plus the truth's own RMS)
 

@@ -1,6 +1,6 @@
-"""merger on real maps from independent runs (../shared/data/real-maps, read in place: its licences keep
-the files out of the repository), against their ground truth (:mod:`tests.realdata`). Skipped, with the
-reason, when the data folder is absent (a clone without the shared data)."""
+"""merger on real maps from independent runs (``$CIRCSIM_REAL_MAPS``, by default ../shared/data/real-maps,
+read in place: its licences keep the files out of the repository), against their ground truth
+(:mod:`tests.realdata`). Skipped, with the reason and the variable to set, when the data folder is absent."""
 
 from __future__ import annotations
 
@@ -14,18 +14,19 @@ from merger.team.verify import check_pair
 from merger.transform import paste
 from tests.realdata import (
     DATA,
+    MISSING,
     aphill_pairs,
     correct,
     fitted_truth,
     grid,
     halmstad_cases,
+    have_data,
     pair_case,
     placement_error,
     refined_truth,
 )
 
-pytestmark = pytest.mark.skipif(not (DATA / "halmstad" / "gt_pairs.csv").exists(),
-                                reason=f"the shared real maps are not at {DATA}")
+pytestmark = pytest.mark.skipif(not have_data(), reason=MISSING)
 
 
 def merged(case, **params):

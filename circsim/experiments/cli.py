@@ -228,66 +228,50 @@ def register_sweep(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from ..commands import load_with_overrides
-    from .plan import SweepError, parse_grid, plan
-    from .store import lock_out
-    from .sweep import check_dask
+    """``circsim sweep``: :func:`circsim.experiments.api.run_sweep` with the options, and its report."""
+    from ..commands import begin_work, interrupted_code
+    from .api import SweepInterrupted, run_sweep
+    from .plan import SweepError
+    from .tables import counted, format_summary
 
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers: expected an integer >= 1, got {args.workers}")
     if args.dask:
+        from .sweep import check_dask
+
         check_dask()
-    base = load_with_overrides(args.scenario, args.seed, args.set)
-    axes = parse_grid(args.grid)
-    tasks = plan(base, axes, args.seeds)
-    if args.out:
-        ensure_output_dir(args.out, "--out")
-    with lock_out(args.out):  # one sweep writes a folder at a time
-        return _sweep(args, base, axes, tasks)
 
+    def announce(base, axes, tasks, done, todo) -> None:
+        begin_work()
+        if base.merger.method == "reference" and todo and not args.quiet:
+            print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "
+                  "--set merger.method=fast is ~100x faster", file=sys.stderr)
+        where = (f"dask {args.dask}" if args.dask else counted(args.workers, "local worker") if args.workers
+                 else "all local workers")
+        print(f"sweep {base.name}: {counted(len(tasks), 'run')} ({counted(len(tasks) // args.seeds, 'combination')}"
+              f" × {counted(args.seeds, 'seed')}), {done} already done, {len(todo)} to run on {where}",
+              file=sys.stderr)
 
-def _sweep(args, base, axes, tasks) -> int:
-    from ..commands import begin_work, interrupted_code
-    from .store import check_sweep_outputs, prepare_out
-    from .sweep import execute
-    from .tables import counted, format_summary, summarize, sweep_rows, write_tables
-
-    check_sweep_outputs(args.out)
-    todo, done = prepare_out(args.out, tasks, resume=args.resume, overwrite=args.overwrite)
-    begin_work()
-    if base.merger.method == "reference" and todo and not args.quiet:
-        print("circsim: note: merger.method is 'reference' (~3 s per merge cycle); "
-              "--set merger.method=fast is ~100x faster", file=sys.stderr)
-    where = (f"dask {args.dask}" if args.dask else counted(args.workers, "local worker") if args.workers
-             else "all local workers")
-    print(f"sweep {base.name}: {counted(len(tasks), 'run')} ({counted(len(tasks) // args.seeds, 'combination')} × "
-          f"{counted(args.seeds, 'seed')}), "
-          f"{done} already done, {len(todo)} to run on {where}", file=sys.stderr)
-    interrupted, failed = False, 0
+    interrupted = False
     try:
-        failed = execute(todo, args.out, workers=args.workers, dask_address=args.dask,
-                         progress=not args.quiet).failed
-    except KeyboardInterrupt:
-        interrupted = True
-    rows = sweep_rows(args.out, tasks)
-    summary = summarize(rows, axes)
-    if rows:
-        paths = write_tables(rows, summary, args.out)
-        if not args.no_plots:
-            from .plots import choose_axes, plot_sweep
+        res = run_sweep(args.scenario, grid=args.grid, seeds=args.seeds, sets=args.set, seed=args.seed,
+                        out=args.out, workers=args.workers, dask=args.dask, resume=args.resume,
+                        overwrite=args.overwrite, plots=not args.no_plots, progress=not args.quiet,
+                        on_start=announce, out_key="--out")
+    except SweepInterrupted as e:
+        res, interrupted = e.result, True
+    if res.rows:
+        from .plan import parse_grid
 
-            x_key, line_keys = choose_axes([a.key for a in axes])
-            paths.append(plot_sweep(rows, line_keys, args.out / "sweep.png", title=f"sweep {base.name}",
-                                    x_key=x_key))
-        print(format_summary(summary, axes))
-        print("written: " + ", ".join(str(p) for p in [args.out / "runs.jsonl", *paths]))
+        print(format_summary(res.summary, parse_grid(args.grid)))
+        print("written: " + ", ".join(str(p) for p in [args.out / "runs.jsonl", *res.paths]))
     if interrupted:
-        print(f"circsim: interrupted; {len(rows)} of {len(tasks)} runs are in {args.out / 'runs.jsonl'} "
+        print(f"circsim: interrupted; {len(res.rows)} of {res.planned} runs are in {args.out / 'runs.jsonl'} "
               "(--resume continues)", file=sys.stderr)
         return interrupted_code()
-    if failed:
-        print(f"circsim: {counted(failed, 'run')} failed (tracebacks in {args.out / 'errors.jsonl'}; --resume retries them)",
-              file=sys.stderr)
+    if res.failed:
+        print(f"circsim: {counted(res.failed, 'run')} failed (tracebacks in {args.out / 'errors.jsonl'}; --resume "
+              "retries them)", file=sys.stderr)
         return 1
     return 0
 

@@ -48,6 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_scenario_args(r)
     r.add_argument("--json", type=Path, metavar="OUT.json", help="write the run's metrics as JSON")
     r.add_argument("--rrd", type=Path, metavar="RUN.rrd", help="record the run to a rerun file")
+    r.add_argument("--png", type=Path, metavar="REPORT.png",
+                   help="write a static report of the run: the last merged map with every robot's map in its "
+                        "colour, ν over time with false merges marked, each robot's first correct merge")
     r.add_argument("--spawn", action="store_true", help="stream the run to a live rerun viewer")
     r.add_argument("--save-maps", type=Path, metavar="DIR",
                    help="write every robot's last published map as ROS map_server files (DIR/<robot>.yaml/.pgm) "
@@ -140,7 +143,9 @@ def cmd_run(args) -> int:
         writable(rrd, "recording")
     if json_out:
         writable(json_out, "metrics JSON")
-    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps, args.bag)
+    if args.png:
+        writable(args.png, "report picture")
+    check_run_outputs(sc, args.scenario, rrd, json_out, args.save_maps, args.bag, args.png)
     if args.bag:
         check_bag_output(args.bag)
     if args.save_maps:
@@ -158,6 +163,12 @@ def cmd_run(args) -> int:
 
         bag = BagRecorder(args.bag)
         observers.append(bag)
+    report = None
+    if args.png:
+        from .report import RunReport
+
+        report = RunReport()
+        observers.append(report)
     recorder = None
     if rrd or args.spawn:
         from .record.rerun import RerunRecorder
@@ -207,6 +218,14 @@ def cmd_run(args) -> int:
                   "maps:      no map was published; nothing written")
         except MapFileError as e:
             print(f"circsim: error: --save-maps: {e}; the run's figures are above", file=sys.stderr)
+            failed = True
+    if report is not None:
+        try:
+            write_files({args.png: report.png()})
+            print(f"report:    {args.png}")
+        except MapFileError as e:
+            print(f"circsim: error: {args.png}: cannot write the report ({e}); the run's figures are above",
+                  file=sys.stderr)
             failed = True
     if json_out:
         from .record import jsonout

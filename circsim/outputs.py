@@ -46,7 +46,7 @@ def _key(p) -> str:
     return os.path.normcase(os.path.realpath(p))
 
 
-def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps, bag=None) -> None:
+def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps, bag=None, png=None) -> None:
     """Before the run: no output may be the scenario file, another output (``--rrd X --json X``, a
     ``--json`` inside ``--save-maps`` named like a robot's map), a folder, a link or a special file; and
     no output may be the ``--bag`` folder or lie inside it (a bag is a new folder of its own)."""
@@ -59,6 +59,8 @@ def check_run_outputs(sc, scenario_arg: str, rrd, json_out, save_maps, bag=None)
         outputs.append((rrd, "--rrd"))
     if json_out:
         outputs.append((json_out, "--json"))
+    if png:
+        outputs.append((png, "--png"))
     if save_maps:
         for i, n in enumerate(sc.robots.names):
             outputs += [(p, "--save-maps") for p in map_paths(save_maps / f"{file_stem(n, i)}.yaml")]

@@ -115,7 +115,8 @@ class PairAmbiguity:
 
 def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Alignment | None:
     """The runner-up of ``al`` as an exact alignment when it scores within ``margin`` of ``al`` on the ROI
-    (None otherwise, or when ``margin`` ≤ 0).
+    (None otherwise, or when ``margin`` ≤ 0). A ``margin`` of 2 or more asks for the runner-up whatever
+    its score (the pair's paths refuted ``al``: :func:`merger.team.tree.pair_result`).
 
     The profile's runner-up angle (coarse, possibly approximate) is re-evaluated exactly over every
     translation of the window at the coarse angles within ±2° of it (more than 10° from ``al``), then
@@ -130,8 +131,11 @@ def rival(problem: RotationProblem, al: Alignment, margin: float, ev=None) -> Al
         # and so close that RIVAL_BUDGET regions do not settle them (then the best found: a real placement)
         # the fast search's profile bounds every angle's values (Lemma 5): the search starts from it (Lemma 5c)
         env = al.profile if al.evidence.get("profile") == "upper_envelope" else None
-        ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK,
-                                           budget=RIVAL_BUDGET, envelope=env)
+        if margin >= 2.0:  # any runner-up, whatever its score (every measure lies in [-1, 1]): exactly, no budget
+            ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, envelope=env)
+        else:
+            ru_deg, ru_score = exact_runner_up(problem, al.theta_deg, floor=al.score - margin - PREFILTER_SLACK,
+                                               budget=RIVAL_BUDGET, envelope=env)
     if not (math.isfinite(ru_deg) and math.isfinite(ru_score)) or al.score - ru_score >= margin + PREFILTER_SLACK:
         return None
     ev = ev if ev is not None else searcher_for(problem)

@@ -24,7 +24,7 @@ edge-disjoint hypotheses. A join is made on the best group when
 
 and the join is **physically possible**: with trajectories (each map's robot path in its own frame,
 :class:`merger.team.params.MapInput`), no robot of A and robot of B are placed in the same place at the
-same time (:func:`same_place`). A wrong rotation by a multiple of the robots' spacing on their circle
+same time (:meth:`Paths.conflict`). A wrong rotation by a multiple of the robots' spacing on their circle
 puts each robot onto a teammate's path: every map shows the central objects as the teammate's did, the
 placement is consistent around every cycle, but two bodies cannot share a place.
 

@@ -54,8 +54,8 @@ import numpy as np
 from ..grid import OccupancyGrid
 from ..search import Alignment, search
 from ..search.local import local_search
-from .ambiguity import resolve
-from .consensus import SE2, AssemblyReport, Measurement, assemble
+from .ambiguity import resolve, rival
+from .consensus import SE2, AssemblyReport, Measurement, Paths, assemble
 from .frames import Warps, compose, place_on_frame0, shifted
 from .memo import Memo, map_key
 from .orders import _beyond, _pair_key, problem_for, refine_chosen
@@ -84,16 +84,39 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
                             f"score of {maps[j].name} = {al.score:.3f} < score_min {params.score_min:g}")
 
     prob = problem_for(maps[i].grid, maps[i].center, maps[j], params)
+    impossible = ""
     if around is not None:
         al, amb = local_search(prob, around[0], around[1]), None
     else:
         al, amb = resolve(prob, search(prob, params.method), params.margin, check, maps[i].name, maps[j].name)
+        why = _same_place(maps[i], maps[j], al)
+        if why:  # the two robots' paths refute the best alignment: its runner-up (≥ 10° away), if possible
+            riv = rival(prob, al, ANY_SCORE)
+            if riv is not None and not _same_place(maps[i], maps[j], riv):
+                al, amb = riv, None
+            else:
+                impossible = f"impossible: the best alignment {why}" + ("" if riv is None else ", and so does its runner-up")
     ver = check(al)
     if not al.has_evidence:
         ver = Verification(ver.nu, ver.counts, False, no_evidence(al, params.roi_min_support, label))
     elif amb is not None and not amb.used:
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
+    elif impossible:
+        ver = Verification(ver.nu, ver.counts, False, impossible)
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
+
+
+ANY_SCORE = 4.0  # a runner-up margin no score difference reaches (every measure lies within [-1, 1])
+
+
+def _same_place(a: MapInput, b: MapInput, al: Alignment) -> str:
+    """Why an alignment of map b onto map a puts their robots in one place at the same time, or ""
+    (no paths: nothing to say; :meth:`merger.team.consensus.Paths.conflict`)."""
+    ta, tb = _centered(a), _centered(b)
+    if ta is None or tb is None:
+        return ""
+    z = (float(al.theta_deg), float(al.translation_m[0]), float(al.translation_m[1]))
+    return Paths([ta, tb]).conflict([0], [1], z, [a.name, b.name])
 
 
 def _placement(p: PairResult) -> Placement:

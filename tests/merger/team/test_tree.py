@@ -232,3 +232,29 @@ def test_an_injected_inconsistent_pair_is_rejected_named_and_the_team_still_plac
         assert abs(angle_diff_deg(res.chosen.theta_deg[n], truth[n])) <= 1.0
     assert set(res.assembly.rejected) == {"B|D"} and res.assembly.rejected["B|D"].startswith("inconsistent")
     assert res.to_dict()["assembly"]["rejected"] == {"B|D": res.assembly.rejected["B|D"]}
+
+
+def test_a_pair_whose_best_alignment_puts_both_robots_in_one_place_takes_its_runner_up(views):
+    """The robots' paths refute a pair's best alignment when it puts both robots in one place at the same
+    time: the search's runner-up (at least 10° away) is taken instead when the paths allow it. Here the
+    paths are drawn so that the true alignment stacks the robots (5 m from the center: 10° apart is 0.87 m)."""
+    from merger.team.frames import Warps
+    from merger.team.tree import pair_result
+
+    _, names, maps, truth = views
+    params = MergeParams(roi_m=8.0)
+    plain = [MapInput(n, g, c, 1) for n, (g, c) in zip(names, maps, strict=True)]
+    base = pair_result(plain, 0, 1, params, Warps(plain))
+    assert base.verification.passed and abs(angle_diff_deg(base.alignment.theta_deg, truth[names[1]])) <= 1.0
+    (g0, c0), (g1, c1) = maps[0], maps[1]
+    t = np.arange(0.0, 3.0, 0.25)
+    p0 = np.column_stack([t, c0[0] + 5.0 + 0.1 * t, np.full(t.size, c0[1])])
+    th = math.radians(-base.alignment.theta_deg)
+    rx, ry = p0[:, 1] - c0[0] - base.alignment.translation_m[0], p0[:, 2] - c0[1] - base.alignment.translation_m[1]
+    p1 = np.column_stack([t, c1[0] + math.cos(th) * rx - math.sin(th) * ry, c1[1] + math.sin(th) * rx + math.cos(th) * ry])
+    stacked = [MapInput(names[0], g0, c0, 2, p0), MapInput(names[1], g1, c1, 2, p1)]
+    res = pair_result(stacked, 0, 1, params, Warps(stacked))
+    assert abs(angle_diff_deg(res.alignment.theta_deg, base.alignment.theta_deg)) >= 10.0
+    apart = [MapInput(names[0], g0, c0, 3, p0), MapInput(names[1], g1, c1, 3, p1 + [0.0, 0.0, 3.0])]
+    far = pair_result(apart, 0, 1, params, Warps(apart))
+    assert far.alignment.theta_deg == base.alignment.theta_deg and far.verification.passed

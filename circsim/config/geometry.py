@@ -7,7 +7,8 @@ arc of the circle (the robots do not avoid obstacles). Such a scene would run an
 merge". A room given as ``walls`` gets the same checks: no wall may cross a robot's path (its arc, as
 wide as its body) and, when the walls close around ``world.center`` (:func:`enclosure`), the robots'
 starts and every pillar and object must lie in what they enclose; walls that do not close around the
-center (an open scene) have no inside, and only the path is checked. Pure functions of the typed
+center (an open scene) have no inside, and only the path is checked. A map world (``world.map``) gets
+them against its free space (:mod:`circsim.config.mapworld`). Pure functions of the typed
 sections (:mod:`circsim.config.types`); the loader (:mod:`circsim.config.scenario`) calls it once.
 """
 
@@ -37,7 +38,11 @@ def check_geometry(world: WorldSpec, robots: RobotsSpec) -> None:
     cx, cy = world.center
     starts = {n: (cx + robots.radius_m * math.cos(math.radians(a)), cy + robots.radius_m * math.sin(math.radians(a)))
               for n, a in zip(robots.names, robots.start_angles_deg, strict=True)}
-    if world.room.size_m is not None:
+    if world.map_grid is not None:
+        from .mapworld import check_map_world
+
+        inside, span = check_map_world(world, robots, starts, path_points(world.center, robots))
+    elif world.room.size_m is not None:
         (rx, ry), (w, h) = world.room.center or (0.0, 0.0), world.room.size_m
         x0, y0, x1, y1 = rx - w / 2, ry - h / 2, rx + w / 2, ry + h / 2
         span = f"the room spans x [{x0:g}, {x1:g}], y [{y0:g}, {y1:g}]"

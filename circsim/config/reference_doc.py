@@ -44,6 +44,13 @@ CONSTRAINTS = """
   circle (as wide as their bodies) for online robots, which drive it without avoiding obstacles; each
   robot's arc ±`robots.offline.max_deg` for offline ones. `world.room` is either `size_m` (and `center`:
   the room is centred on `world.center` unless given) or `walls`, not both.
+- With a `world.map` (a map world, instead of `world.room`): the map is read as `merger` reads map_server
+  files (`mode`, thresholds, `negate`, `origin`); its occupied and unknown cells are solid, and beyond its
+  edge is solid. `world.center` lies in a free cell; every robot's start and every point of its path (the
+  circle online, its arc offline) is at least `robots.body_radius_m` from every solid cell (exact
+  distances to the cells' squares); pillars and objects lie wholly in free space. A refusal names the
+  first blocking point in map coordinates, what the map has there, and the largest circle about
+  `world.center` that is clear. A missing or malformed map file is the map loader's one-line error.
 - `center_error.magnitude_m` and each `center_error.per_robot` error at most `merger.roi_m` / 2;
   `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
   `magnitude_m` for those robots).
@@ -83,7 +90,8 @@ What tracking costs in quality is measured by `benchmarks/bench_tracking.py` (do
 
 
 # Defaults that follow another key: the table says which (the default scenario's value would mislead).
-DERIVED_DEFAULTS = {"world.room.center": "(`world.center`)"}
+DERIVED_DEFAULTS = {"world.room.center": "(`world.center`)", "world.map": "(none: the world is `world.room`)",
+                    "world.map_resolution_m": "(none: a map's YAML states its own)"}
 
 
 def _default(defaults, path: list[str]):

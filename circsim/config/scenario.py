@@ -12,6 +12,7 @@ pillar or object on a robot's start; sizes that would not fit in memory or take 
 :data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
 ``merger.limits.MAX_ROI_M``); a laser, odometry or matcher setting no real robot has (each range names
 its source: a datasheet, a ROS package's default). A room given as ``walls`` (which need not close) has no inside to check.
+A ``world.map`` (map file) is read here, relative to the scenario file's folder (:mod:`circsim.config.mapworld`).
 
 Here: the loader, the overrides, the merger section (its type and checks) and the checks that span
 sections; every other section's keys are checked in :mod:`circsim.config.schema` (the reference,
@@ -44,6 +45,7 @@ from merger.team.online import STRATEGIES, TeamMerger
 from merger.team.params import RULES, MergeParams
 
 from .geometry import check_geometry
+from .mapworld import load_world_map
 from .schema import (
     DT_S,
     LASER_SCHEMA,
@@ -229,9 +231,19 @@ def load_scenario(path, overrides=()) -> Scenario:
     if data is None:  # an empty or comment-only file would silently run the default scene
         raise ScenarioError(f"{label}: empty scenario (expected a mapping of scenario sections: "
                             f"{', '.join(TOP_KEYS)})")
+    _absolute_map_path(data, path.parent)
     if overrides and isinstance(data, dict):
         return _overridden({"name": path.stem, **data}, list(overrides), label)
     return scenario_from_dict(data, source=label, default_name=path.stem)
+
+
+def _absolute_map_path(data, folder: Path) -> None:
+    """A file's ``world.map`` is relative to the file's folder: made absolute in ``data`` (so overrides,
+    sweeps and ``scenario_to_dict`` carry a path that works from anywhere)."""
+    world = data.get("world") if isinstance(data, dict) else None
+    m = world.get("map") if isinstance(world, dict) else None
+    if isinstance(m, str) and m and not Path(m).is_absolute():
+        data["world"] = {**world, "map": str((folder / m).resolve())}
 
 
 def scenario_from_dict(data, source: str = "<dict>", default_name: str = "scenario") -> Scenario:
@@ -319,6 +331,8 @@ def _build(data, source: str) -> Scenario:
         raise bad("duration_s", f"at most {MAX_TICKS} ticks of dt_s ({dt_s:g} s): a number <= "
                   f"{MAX_TICKS * dt_s:g}", duration_s)
     world = world_section(data.get("world"))
+    if world.map is not None:
+        world = load_world_map(world)
     check_geometry(world, robots)
     return Scenario(
         name=string(data.get("name", "scenario"), "name"),
@@ -352,6 +366,10 @@ def plain_value(v):
         if isinstance(v, Room):
             keep = ("walls",) if v.size_m is None else ("size_m", "center")
             out = {k: out[k] for k in keep}
+        if isinstance(v, WorldSpec):  # a room world's keys as before maps existed; a map world has no room
+            drop = ("map", "map_resolution_m") if v.map is None else \
+                ("room",) + (("map_resolution_m",) if v.map_resolution_m is None else ())
+            out = {k: x for k, x in out.items() if k not in drop}
         return out
     if isinstance(v, tuple | list):
         return [plain_value(x) for x in v]

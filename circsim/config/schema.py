@@ -6,8 +6,8 @@ what the reference (:mod:`circsim.config.reference_doc`) prints; a check raises
 :class:`~circsim.config.validate.Invalid` naming the key path. The physical ranges (the laser, the
 odometry, the matcher, the drift, the tick) name their source, a datasheet or a ROS package's default, in
 the check's ``why``. Three sections are checked beyond their keys, one function each:
-:func:`world_section` (a rectangular room or walls, not both; the room centred on ``world.center``
-unless given), :func:`robots_section` (unique printable names; start angles spread evenly from 90° when
+:func:`world_section` (a rectangular room or walls, not both, or a map file; the room centred on
+``world.center`` unless given), :func:`robots_section` (unique printable names; start angles spread evenly from 90° when
 names other than three come without them; one start angle and yaw offset per robot; bodies of at least
 :data:`MIN_BODY_RADIUS_M` that do not overlap at their starts; at most :data:`MAX_SPEED_MPS`) and
 :func:`center_error_section` (errors of known robots, each within half the ROI). What spans sections
@@ -80,9 +80,22 @@ def _object(v, path):
 
 _SEG = seq(number(), "a wall [ax, ay, bx, by] of four numbers", length=4)
 ROOM_SCHEMA = {"size_m": vec2(gt=0), "center": vec2(), "walls": seq(_SEG, "a list of walls [ax, ay, bx, by]", 1)}
+
+
+def _map_path(v, path):
+    if not isinstance(v, str) or not v:
+        raise bad(path, "a string, the path of a map file", v)
+    return v
+
+
+_map_path.expected = ("the path of a ROS map_server YAML (relative to the scenario file; its occupied and "
+                      "unknown cells are solid, positions are in its frame) or of an image with "
+                      "world.map_resolution_m (lower-left corner at (0, 0)); not with world.room")
 _PILLAR = section(Pillar, {"center": vec2(), "radius": POSITIVE}, required=("center",))
 WORLD_SCHEMA = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
-          "objects": seq(_object, "a list of objects")}
+          "objects": seq(_object, "a list of objects"), "map": _map_path,
+          "map_resolution_m": number(ge=0.001, le=1, why="an image's cell size: map_server maps are 1–10 cm "
+                                     "(gmapping and Cartographer save 5 cm)")}
 ROBOTS_SCHEMA = {"names": seq(string, "a list of robot names", 1), "radius_m": POSITIVE,
            "start_angles_deg": seq(number(), "a list of numbers"), "heading": choice("center", "tangent"),
            "yaw_offsets_deg": seq(number(), "a list of numbers"), "speed_mps": POSITIVE,
@@ -135,6 +148,14 @@ OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITI
 def world_section(v) -> WorldSpec:
     w = section(lambda **kw: kw, WORLD_SCHEMA)(v, "world")  # room is checked below: it needs the center
     center = w.get("center", WorldSpec.center)
+    if "map" in w:
+        if "room" in w:
+            raise Invalid("world.room", "expected either world.room or world.map, not both (a map world's "
+                          "walls are its map's occupied and unknown cells)")
+        return WorldSpec(center, Room(None, None, ()), w.get("pillars", ()), w.get("objects", ()),
+                         w["map"], w.get("map_resolution_m"))
+    if "map_resolution_m" in w:
+        raise Invalid("world.map_resolution_m", "expected only with world.map (an image's cell size)")
     room = w.get("room") or {}
     if not isinstance(room, dict):
         raise bad("world.room", "a mapping with size_m and center, or walls", room)

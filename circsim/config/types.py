@@ -81,12 +81,36 @@ class Box:
     yaw_deg: float = 0.0
 
 
+@dataclass(frozen=True, eq=False)
+class MapGrid:
+    """A map world's cells as read from its file (the loader's, :mod:`circsim.config.mapworld`): ``states``
+    (H, W) uint8, merger's cell codes (0 unknown, 1 free, 2 occupied: ``merger.grid.Cell``), row 0 at the
+    lowest y (ROS order); ``resolution`` metres per cell; ``origin`` (x, y) of cell (0, 0)'s corner in
+    the map frame. ``solid``: occupied or unknown (unknown is outside the building)."""
+
+    FREE: ClassVar[int] = 1
+    states: np.ndarray
+    resolution: float
+    origin: Vec2
+
+    @property
+    def solid(self) -> np.ndarray:
+        return self.states != self.FREE
+
+
 @dataclass(frozen=True)
 class WorldSpec:
+    """The world: a ``room`` (rectangle or walls), or a ``map`` file (a ROS map_server YAML, or an image
+    of ``map_resolution_m`` cells; absolute once loaded) whose cells ``map_grid`` holds; pillars and
+    objects on top. Positions are in the room's or the map's frame, metres."""
+
     center: Vec2 = (0.0, 0.0)
     room: Room = Room()
     pillars: tuple[Pillar, ...] = ()
     objects: tuple[Chair | OverturnedChair | Box, ...] = ()
+    map: str | None = None
+    map_resolution_m: float | None = None
+    map_grid: MapGrid | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)

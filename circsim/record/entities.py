@@ -167,10 +167,16 @@ def dim_colour(col) -> tuple[int, int, int]:
 
 
 def split_geometry(sc, geo):
-    """Static geometry as line strips: walls (the room), pillars, and the remaining objects."""
-    walls = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in sc.world.room.wall_segments()]
-    wall_keys = {value_key(s) for s in sc.world.room.wall_segments()} | {value_key((c, d, a, b)) for a, b, c, d
-                                                                     in sc.world.room.wall_segments()}
+    """Static geometry as line strips: walls (the room, or a map world's cell edges), pillars, and the
+    remaining objects."""
+    segs = list(sc.world.room.wall_segments())
+    if sc.world.map_grid is not None:
+        from ..world.mapgeometry import boundary_segments
+
+        g = sc.world.map_grid
+        segs += [tuple(s) for s in boundary_segments(g.solid, g.resolution, g.origin).tolist()]
+    walls = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in segs]
+    wall_keys = {value_key(s) for s in segs} | {value_key((c, d, a, b)) for a, b, c, d in segs}
     pillar_keys = {value_key((*p.center, p.radius)) for p in sc.world.pillars}
     pillars = [circle_points(p.center[0], p.center[1], p.radius, 48) for p in sc.world.pillars]
     objects = [np.array([[a, b, 0.0], [c, d, 0.0]]) for a, b, c, d in geo.segments

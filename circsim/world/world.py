@@ -1,6 +1,7 @@
 """The pymunk world: walls, pillars, scene objects and the robots' bodies.
 
-Static obstacles are zero-thickness segments (walls, the overturned chair's seat and back), circles
+Static obstacles are zero-thickness segments (walls, a map world's cell edges (:mod:`circsim.world.mapgeometry`),
+the overturned chair's seat and back), circles
 (pillars, chair legs) and polygons (boxes) on the space's static body. Each robot is a KINEMATIC body
 with one circle shape in its own ``ShapeFilter`` group, so its laser can exclude it. The space is the
 source of truth for the geometry: :meth:`World.geometry` reads the shapes back as numpy arrays for the
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pymunk
 
+from .mapgeometry import boundary_segments
 from .motion import Pose, trajectories
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,6 +53,15 @@ class World:
         """A zero-thickness segment from ``a`` to ``b``."""
         self._add_static(pymunk.Segment(self.space.static_body, _xy(a), _xy(b), 0.0))
 
+    def add_walls(self, segments) -> None:
+        """Many zero-thickness segments at once, (S, 4) ``ax, ay, bx, by`` (a map world's walls)."""
+        body = self.space.static_body
+        shapes = [pymunk.Segment(body, (ax, ay), (bx, by), 0.0)
+                  for ax, ay, bx, by in np.asarray(segments, np.float64).reshape(-1, 4).tolist()]
+        if shapes:
+            self.space.add(*shapes)
+            self._static_cache = None
+
     def add_circle(self, center, radius: float) -> None:
         self._add_static(pymunk.Circle(self.space.static_body, float(radius), _xy(center)))
 
@@ -80,6 +91,9 @@ class World:
         w = cls()
         for a, b in _pairs(sc.world.room.wall_segments()):
             w.add_wall(a, b)
+        if sc.world.map_grid is not None:  # a map world: the edges between its free and solid cells
+            g = sc.world.map_grid
+            w.add_walls(boundary_segments(g.solid, g.resolution, g.origin))
         for p in sc.world.pillars:
             w.add_circle(p.center, p.radius)
         for obj in sc.world.objects:

@@ -67,6 +67,19 @@ def load_map(path) -> OccupancyGrid:
     return OccupancyGrid(np.ascontiguousarray(states), meta["resolution"], tuple(meta["origin"][:2]))
 
 
+def load_image_map(path, resolution: float, origin=(0.0, 0.0)) -> OccupancyGrid:
+    """An image alone (no YAML) read as map_server reads one with map_server's defaults (``trinary``,
+    ``negate: 0``, thresholds 0.65 / 0.196), at ``resolution`` metres per cell, cell (0, 0)'s corner
+    at ``origin``. Problems raise :class:`~merger.io.mapread.MapFileError` naming the file."""
+    path = Path(path)
+    img = np.flipud(read_image(path, path))
+    if img.size == 0:
+        raise MapFileError(f"{path}: an empty image (0 cells)")
+    meta = {"mode": "trinary", "negate": 0, "occupied_thresh": 0.65, "free_thresh": 0.196}
+    return OccupancyGrid(np.ascontiguousarray(_pixel_states(_grey(img), meta)), float(resolution),
+                         (float(origin[0]), float(origin[1])))
+
+
 def map_input_paths(path) -> list[Path]:
     """The files a map is read from: its YAML and its image (for :func:`check_outputs`)."""
     path = Path(path)

@@ -44,7 +44,7 @@ def office_world():
     return sc, World.from_scenario(sc)
 
 
-def test_office_world_is_its_map_walls_and_loads_fast():
+def test_office_world_is_its_map_walls():
     sc, w = office_world()
     grid = load_map(REAL_MAP)
     seg = w.geometry().segments
@@ -106,3 +106,25 @@ def test_a_hand_made_map_world_gives_the_ranges_of_its_cells():
     expect = {0.0: 1.0, 90.0: 1.75, 180.0: 1.5, 270.0: 1.25}  # east hits the block at x = 3
     for a, got in zip(np.degrees(angles) % 360, r, strict=True):
         assert got == pytest.approx(expect[round(a) % 360], abs=1e-9)
+
+
+def test_the_compiled_path_for_many_walls_gives_the_numpy_paths_bits(monkeypatch):
+    """Above laser._MANY segments the walls within reach go through one compiled loop
+    (circsim.world.raykernel); it must give exactly the ranges of the numpy pairs it replaces, also with
+    a laser that wraps past 2π, and segments out of reach change nothing."""
+    sc, w = office_world()
+    seg = w.geometry().segments
+    circ = w.geometry().circles
+    rng = np.random.default_rng(4)
+    cx, cy = sc.world.center
+    cases = [((cx + 0.8 * math.cos(a), cy + 0.8 * math.sin(a)), float(rng.uniform(-7, 7)), n, fov)
+             for a, n, fov in zip(rng.uniform(0, 2 * math.pi, 12), [667, 360, 1081] * 4,
+                                  [240, 360, 270] * 4, strict=True)]
+    for origin, start, beams, fov in cases:
+        inc = math.radians(fov) / (beams - (fov < 360))
+        args = (origin, start, inc, beams, 5.6, seg, circ)
+        fast = laser.raycast(*args)
+        monkeypatch.setattr(laser, "_MANY", 10**9)
+        slow = laser.raycast(*args)
+        monkeypatch.undo()
+        assert np.array_equal(fast, slow) and np.isfinite(fast).sum() > beams // 2

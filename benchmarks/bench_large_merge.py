@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 OFFICE = Path(__file__).resolve().parents[1] / "tests" / "data" / "real-maps" / "turtlebot3_office.yaml"
-STAGES = [("merger.cli", "load_map", "load the maps"),
+STAGES = [("merger.io.inputs", "load_map", "load the maps"),
           ("merger.team.orders", "parallel_map", "search and verify the orders (thread pool)"),
           ("merger.team.orders", "refine_chosen", "refine the chosen placement on the whole maps"),
           ("merger.team.orders", "fuse", "fuse the merged map"),

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from merger import align  # noqa: E402
+from merger import search_pair  # noqa: E402
 from merger.grid import OccupancyGrid  # noqa: E402
 from merger.io.mapio import load_map  # noqa: E402
 
@@ -68,7 +68,7 @@ def main(argv=None) -> int:
             for w in (0.0, args.window):
                 for m in MEASURES:
                     t0 = time.perf_counter()
-                    al = align(g, g, center_ref=c, roi_m=roi, measure=m, window_m=w)
+                    al = search_pair(g, g, center_ref=c, roi_m=roi, measure=m, window_m=w)
                     ms = (time.perf_counter() - t0) * 1e3
                     worst = max(worst, ms)
                     ok = abs(((al.theta_deg + 180.0) % 360.0) - 180.0) < 0.05 and max(map(abs, al.translation_m)) < 0.01

@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 from merger import MapInput, MergeParams, merge_team  # noqa: E402
 from merger.grid import FREE_S, OCCUPIED_S  # noqa: E402
 from merger.search import angle_diff_deg  # noqa: E402
-from merger.team.evidence import AGREE_DEG, CONTRAST_MIN, contrast  # noqa: E402
+from merger.team.evidence import CONTRAST_MIN, FIT_AGREE_DEG, contrast  # noqa: E402
 from merger.team.frames import Warps, shifted  # noqa: E402
 from merger.team.orders import whole_map_guard  # noqa: E402
 from merger.team.verify import refined_placement  # noqa: E402
@@ -414,8 +414,8 @@ def leave_one_building_out(rows) -> str:
     lines.append(f"  held out, all: {tot[0]} ok, {tot[1]} false of {tot[2]}")
     cmin, agree = choose_constants(hal)
     lines.append(f"  chosen on all three: contrast_min {cmin:g}, agreement {agree:g}° ({_score(hal, cmin, agree)[0]} ok, "
-                 f"{_score(hal, cmin, agree)[1]} false of {len(hal)}); the defaults {CONTRAST_MIN:g}, {AGREE_DEG:g}°: "
-                 f"{_score(hal, CONTRAST_MIN, AGREE_DEG)[0]} ok, {_score(hal, CONTRAST_MIN, AGREE_DEG)[1]} false; "
+                 f"{_score(hal, cmin, agree)[1]} false of {len(hal)}); the defaults {CONTRAST_MIN:g}, {FIT_AGREE_DEG:g}°: "
+                 f"{_score(hal, CONTRAST_MIN, FIT_AGREE_DEG)[0]} ok, {_score(hal, CONTRAST_MIN, FIT_AGREE_DEG)[1]} false; "
                  f"before this choice (1.5, 2°): {_score(hal, 1.5, 2.0)[0]} ok, {_score(hal, 1.5, 2.0)[1]} false")
     return "\n".join(lines)
 

@@ -17,7 +17,7 @@ the placement stands above the same maps' other placements:
   best, and one that climbs to its limit towards the placement is the placement's own shoulder, not a
   rival (a broad peak, e.g. large rooms near the center).
 * **contrast** = best / rival. Accepted when contrast ≥ ``contrast_min``, b has at least
-  ``min_support`` occupied cells on a's known cells, and the best fit lies within ``AGREE_DEG`` of the
+  ``min_support`` occupied cells on a's known cells, and the best fit lies within ``FIT_AGREE_DEG`` of the
   placement's angle: the contrast says the placement is in the right basin, the agreement that the
   search's answer is where the whole maps fit (on bent real maps an ROI's optimum was 3–9° off with a
   contrast of 1.9–5.5; measured in docs/merging-real-maps.md). A point-symmetric scene has a rival as good as the
@@ -50,7 +50,7 @@ REFINE_M = 1.0  # ... and this translation on each axis
 SCAN_DEG = (-2.0, -1.0, 0.0, 1.0, 2.0)  # its coarse scan: these angles × translations every SCAN_STEP_M
 SCAN_STEP_M = 0.1
 SCAN_POINTS = 4096
-AGREE_DEG = 4.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast; chosen
+FIT_AGREE_DEG = 4.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast; chosen
 # leaving one Halmstad building out, with the accepted placement refined: docs/merging-real-maps.md)
 CONTRAST_MIN = 1.5  # real maps: search answers 1.4–5.5, placements 20–180° off them ≤ 0.56 (docs/merging-real-maps.md)
 

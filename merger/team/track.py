@@ -49,8 +49,8 @@ RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed si
 RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
 UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched again at a quarter of research_change
 # (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
-AGREE_DEG = 10.0  # two answers this close in angle and AGREE_M in translation are one hypothesis
-AGREE_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
+SAME_HYPOTHESIS_DEG = 10.0  # two answers this close in angle and SAME_HYPOTHESIS_M in translation are one hypothesis
+SAME_HYPOTHESIS_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
 
 
 def roi_change(before: np.ndarray | None, now: np.ndarray) -> float:
@@ -85,9 +85,9 @@ def jump_summary(jumps) -> dict:
 
 
 def agree(a, b) -> bool:
-    """Whether two placements (or team placements) are one hypothesis: within AGREE_DEG and AGREE_M."""
+    """Whether two placements (or team placements) are one hypothesis: within SAME_HYPOTHESIS_DEG and SAME_HYPOTHESIS_M."""
     dth, dt = placement_jump(a, b)
-    return dth <= AGREE_DEG and dt <= AGREE_M
+    return dth <= SAME_HYPOTHESIS_DEG and dt <= SAME_HYPOTHESIS_M
 
 
 @dataclass

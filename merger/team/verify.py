@@ -19,7 +19,7 @@ import numpy as np
 from ..grid import OccupancyGrid
 from ..measures import Counts, similarity_index
 from ..transform import overlap
-from .evidence import AGREE_DEG, REFINE_M, Contrast, contrast, refine
+from .evidence import FIT_AGREE_DEG, REFINE_M, Contrast, contrast, refine
 
 
 @dataclass(frozen=True)
@@ -71,15 +71,15 @@ def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: f
     """The contrast rule (:mod:`merger.team.evidence`) for b placed onto a (grids on one lattice, rotations about
     ``pivot``); ``nu`` and ``counts`` are ω̃ on the overlap, as in :func:`verify`, for the record."""
     s = similarity_index(*overlap(a, b))
-    k = contrast(a, b, pivot, tolerance_m, min_support=min_support, agree_deg=AGREE_DEG)
+    k = contrast(a, b, pivot, tolerance_m, min_support=min_support, agree_deg=FIT_AGREE_DEG)
     name = f" of {label}" if label else ""
     if k.support < min_support:
         return Verification(s.value, s.counts, False, f"support{name} = {k.support} occupied cells on known "
                             f"cells < min_support {min_support}", k)
-    if abs(k.best_at[0]) > AGREE_DEG:
+    if abs(k.best_at[0]) > FIT_AGREE_DEG:
         return Verification(s.value, s.counts, False,
                             f"the whole maps{name} fit best {k.best_at[0]:+.1f}° from the placement (more than "
-                            f"{AGREE_DEG:g}°): the ROI's answer is not where the maps agree", k)
+                            f"{FIT_AGREE_DEG:g}°): the ROI's answer is not where the maps agree", k)
     if k.contrast < contrast_min:
         return Verification(s.value, s.counts, False,
                             f"contrast{name} = {k.contrast:.2f} < contrast_min {contrast_min:g} (fit {k.best:.3f}, "

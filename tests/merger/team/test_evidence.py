@@ -13,7 +13,7 @@ import pytest
 from merger import MapInput, MergeParams, merge_team
 from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from merger.search import angle_diff_deg
-from merger.team.evidence import AGREE_DEG, CONTRAST_MIN, contrast
+from merger.team.evidence import CONTRAST_MIN, FIT_AGREE_DEG, contrast
 from merger.team.frames import Warps, shifted
 from merger.team.orders import refine_chosen
 from merger.team.verify import check_pair, verify_contrast
@@ -58,13 +58,13 @@ def test_a_correct_placement_of_noisy_maps_stands_above_its_rivals_and_wrong_one
 
 def test_a_placement_a_few_degrees_off_stands_above_its_rivals_but_is_refused_by_the_agreement(noisy):
     """6° off the truth is still in the truth's basin (contrast well above 1), but the whole maps fit best
-    at least 5° away from it (the local fit's limit), beyond AGREE_DEG: refused, not accepted degrees wrong."""
+    at least 5° away from it (the local fit's limit), beyond FIT_AGREE_DEG: refused, not accepted degrees wrong."""
     maps, truth = noisy
     placed = Warps(maps).get(0, 1, (truth + 6.0) % 360.0)
     v = verify_contrast(maps[0].grid, placed, maps[0].center, tolerance_m=0.2, contrast_min=CONTRAST_MIN,
                         min_support=200)
     full = contrast(maps[0].grid, placed, maps[0].center, 0.2)  # every rival computed
-    assert full.contrast >= CONTRAST_MIN and v.contrast.best_at[0] <= -AGREE_DEG - 0.5
+    assert full.contrast >= CONTRAST_MIN and v.contrast.best_at[0] <= -FIT_AGREE_DEG - 0.5
     assert not v.passed and "fit best" in v.reason
     assert math.isnan(v.contrast.rival)  # the rule refused on the angle: its rivals were not computed
     right = verify_contrast(maps[0].grid, Warps(maps).get(0, 1, truth), maps[0].center, tolerance_m=0.2,
@@ -177,7 +177,7 @@ def _rule_on_full_contrast(k, min_support=200):
     rule that stops early."""
     if k.support < min_support:
         return False, "support"
-    if abs(k.best_at[0]) > AGREE_DEG:
+    if abs(k.best_at[0]) > FIT_AGREE_DEG:
         return False, "fit best"
     return k.contrast >= CONTRAST_MIN, "contrast"
 

@@ -10,10 +10,12 @@ DOOR-SLAM and Kimera-Multi): from the largest sets of measurements that agree wi
 parts of a team are joined only on evidence that is hard to get by chance.
 
 Agglomeration: every map starts as its own cluster. Between two clusters A and B each measurement (a, b)
-is a hypothesis for B's frame in A's; where fewer than two direct measurements exist, every two-edge
-route a–c–b through a third map c is one too (its two searches are made independently of the direct
-one). Hypotheses that agree within ``tol_deg`` and ``tol_m`` form a group; a group's *routes* are its
-edge-disjoint hypotheses. A join is made on the best group when
+is a hypothesis for B's frame in A's, and so is each route through a *witness*: a third map c whose
+measurements into A all agree on where c lies in A, and into B likewise (its searches are made
+independently of the direct ones; a map whose measurements into a cluster disagree witnesses nothing).
+Witnesses are asked where fewer than two direct measurements exist, and always before a join is made.
+Hypotheses that agree within ``tol_deg`` and ``tol_m`` form a group; a group's *routes* are its
+hypotheses, each a separate search or witness. A join is made on the best group when
 
 * **two routes agree** (:data:`MIN_ROUTES`), at least one of them a direct measurement, and the group
   has at least twice the routes of any rival group between the same clusters; or

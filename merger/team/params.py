@@ -260,8 +260,8 @@ if list(RULES) != [f.name for f in fields(MergeParams)]:
 class MapInput:
     """A map to merge: its owner's name, the grid (in the owner's frame) and the center in that frame.
 
-    ``version`` (optional, hashable; e.g. the map message's stamp) identifies this grid and center among
-    the owner's maps: with versions, :func:`merge_team` can reuse a pair alignment of unchanged maps
+    ``version`` (optional, hashable; e.g. the map message's stamp) identifies this grid, center and
+    trajectory among the owner's maps: with versions, :func:`merge_team` can reuse a pair alignment of unchanged maps
     from an earlier cycle (its ``reuse`` argument).
 
     ``trajectory`` (optional): the owner robot's path in the map's frame, rows (t, x, y) by time, t in

@@ -10,7 +10,9 @@ from tests.paths import REPO
 
 ROOT = REPO
 README = ROOT / "README.md"
-TEST_COMMAND = 'python3 -m venv .venv && .venv/bin/pip install -e ".[test]" && .venv/bin/python -m pytest -q -n 2'
+# the site is built strictly before the tests; no -q: mkdocs' --quiet drops the warnings strict mode counts
+TEST_COMMAND = ('python3 -m venv .venv && .venv/bin/pip install -e ".[test,docs]" && .venv/bin/mkdocs build --strict '
+                '&& .venv/bin/python -m pytest -q -n 2')
 
 
 def block(text: str, after: str, lang: str) -> str:

@@ -80,8 +80,12 @@ def run_sweep(scenario: str | Path, *, grid=(), seeds: int = 1, sets=(), seed: i
     out_key : how an error names ``out`` (the command line: ``--out``).
     on_start : called as ``on_start(base, axes, tasks, done, todo)`` before the first run (the CLI's line).
 
-    Raises :class:`~circsim.experiments.plan.SweepError` for a bad input (before any run) and
-    :class:`SweepInterrupted` on Ctrl-C (the finished rows written, its ``result`` holds them).
+    Raises
+    ------
+    SweepError
+        A bad input (:class:`~circsim.experiments.plan.SweepError`), before any run.
+    SweepInterrupted
+        Ctrl-C: the finished rows are written and its ``result`` holds them.
     """
     from merger.io.mapio import ensure_output_dir
 

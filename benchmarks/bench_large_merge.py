@@ -34,7 +34,7 @@ STAGES = [("merger.io.inputs", "load_map", "load the maps"),
           ("merger.team.orders", "parallel_map", "search and verify the orders (thread pool)"),
           ("merger.team.orders", "refine_chosen", "refine the chosen placement on the whole maps"),
           ("merger.team.orders", "fuse", "fuse the merged map"),
-          ("merger.cli", "write_merge", "write the merged map and its overlay")]
+          ("merger.cli.commands", "write_merge", "write the merged map and its overlay")]
 
 
 def rss_mb() -> float:

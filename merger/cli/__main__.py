@@ -1,0 +1,7 @@
+"""``python -m merger.cli``: the ``merger`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -151,6 +151,10 @@ def cmd_run(args) -> int:
     if args.save_maps:
         check_maps_folder(args.save_maps)
     make_folders(args.save_maps, rrd.parent if rrd else None)
+    if sc.world.generate is not None:  # where the generated plan put the common center
+        from .config.floorplanworld import describe
+
+        print(describe(sc.world), flush=True)
     observers = [o for o in [progress_observer(sc, args.quiet)] if o]
     from .record.savemaps import MapSaver
 

@@ -51,6 +51,15 @@ CONSTRAINTS = """
   distances to the cells' squares); pillars and objects lie wholly in free space. A refusal names the
   first blocking point in map coordinates, what the map has there, and the largest circle about
   `world.center` that is clear. A missing or malformed map file is the map loader's one-line error.
+- With a `world.generate` (instead of `world.room` or `world.map`): the building is drawn from
+  `world.generate.seed` (the same seed, the same cells) and then checked as a map world. Its outer walls'
+  centre lines run from (0, 0) to `size_m`; a spine corridor runs along the long side (`corridors: 2`: and
+  one across it), one room, the hall, is sized for the robots' circle, and no furniture comes within
+  `robots.radius_m` + `robots.body_radius_m` + 0.3 m of the common center: `world.center` when given
+  (checked as any map world's), else a point of the hall the generator chooses (`circsim scenarios --show`
+  and `circsim run` print it). `rooms` counts the hall: at least 3 (5 with two corridors), and at most what
+  the building holds with rooms at least 2 m wide inside (a refusal names that number); the building is at
+  least as deep as the hall, a corridor and a room; `wall_m` ≥ `resolution_m`; at most 2000 cells a side.
 - `center_error.magnitude_m` and each `center_error.per_robot` error at most `merger.roi_m` / 2;
   `center_error.per_robot`: keys are robot names, values `[dx, dy]` in metres (they replace
   `magnitude_m` for those robots).
@@ -135,12 +144,13 @@ def _rows(schema: dict, prefix: list[str], defaults, out: list) -> None:
 
 def _sections():
     """(section title, key prefix, schema) in the order of a scenario file."""
-    world = {k: v for k, v in K.WORLD_SCHEMA.items() if k != "room"}
+    world = {k: v for k, v in K.WORLD_SCHEMA.items() if k not in ("room", "generate")}
     return [
         ("Top level", [], {"name": string, "description": string, "seed": integer(ge=0),
                            "duration_s": K.POSITIVE, "dt_s": K.DT_S}),
         ("world", ["world"], world),
         ("world.room", ["world", "room"], K.ROOM_SCHEMA),
+        ("world.generate (a generated floor plan)", ["world", "generate"], K.GENERATE.schema),
         *[(f"world.objects[] with type: {kind}", ["world", "objects[]"], check)
           for kind, check in K.OBJECT_SCHEMAS.items()],
         ("robots", ["robots"], K.ROBOTS_SCHEMA),
@@ -165,6 +175,7 @@ def scenario_reference() -> str:
     sc = S.scenario_from_dict({}, default_name="FILE_STEM")
     defaults = {**S.scenario_to_dict(sc), "name": "(the file name without .yaml)", "description": "",
                 "seed": sc.seed, "duration_s": "(one tour of the circle)", "dt_s": sc.dt_s}
+    defaults["world"]["generate"] = item_defaults(K.GENERATE)  # a room world has none: the plan's own
     aliases = ", ".join(f"`{a}` → `{k}`" for a, k in S.ALIASES.items())
     parts = [HEADER.format(aliases=aliases)]
     for title, prefix, schema in _sections():

@@ -12,7 +12,8 @@ pillar or object on a robot's start; sizes that would not fit in memory or take 
 :data:`MAX_GRID_CELLS` cells a side, more than :data:`MAX_TICKS` ticks, a ROI above
 ``merger.limits.MAX_ROI_M``); a laser, odometry or matcher setting no real robot has (each range names
 its source: a datasheet, a ROS package's default). A room given as ``walls`` (which need not close) has no inside to check.
-A ``world.map`` (map file) is read here, relative to the scenario file's folder (:mod:`circsim.config.mapworld`).
+A ``world.map`` (map file) is read here, relative to the scenario file's folder (:mod:`circsim.config.mapworld`); a
+``world.generate`` plan is drawn here (:mod:`circsim.config.floorplanworld`).
 
 Here: the loader, the overrides, the merger section (its type and checks) and the checks that span
 sections; every other section's keys are checked in :mod:`circsim.config.schema` (the reference,
@@ -44,6 +45,7 @@ from merger.settings import check_roi
 from merger.team.online import STRATEGIES, TeamMerger
 from merger.team.params import RULES, MergeParams
 
+from .floorplanworld import generate_world
 from .geometry import check_geometry
 from .mapworld import load_world_map
 from .schema import (
@@ -333,6 +335,8 @@ def _build(data, source: str) -> Scenario:
     world = world_section(data.get("world"))
     if world.map is not None:
         world = load_world_map(world)
+    elif world.generate is not None:
+        world = generate_world(world, robots)
     check_geometry(world, robots)
     return Scenario(
         name=string(data.get("name", "scenario"), "name"),
@@ -369,6 +373,7 @@ def plain_value(v):
         if isinstance(v, WorldSpec):  # a room world's keys as before maps existed; a map world has no room
             drop = ("map", "map_resolution_m") if v.map is None else \
                 ("room",) + (("map_resolution_m",) if v.map_resolution_m is None else ())
+            drop += ("generate",) if v.generate is None else ("room",)
             out = {k: x for k, x in out.items() if k not in drop}
         return out
     if isinstance(v, tuple | list):

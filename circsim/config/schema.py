@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import unicodedata
 
+from .floorplanworld import GENERATE
 from .types import (
     SLAM_MODELS,
     Box,
@@ -93,7 +94,7 @@ _map_path.expected = ("the path of a ROS map_server YAML (relative to the scenar
                       "world.map_resolution_m (lower-left corner at (0, 0)); not with world.room")
 _PILLAR = section(Pillar, {"center": vec2(), "radius": POSITIVE}, required=("center",))
 WORLD_SCHEMA = {"center": vec2(), "room": lambda v, path: v, "pillars": seq(_PILLAR, "a list of pillars"),
-          "objects": seq(_object, "a list of objects"), "map": _map_path,
+          "objects": seq(_object, "a list of objects"), "map": _map_path, "generate": GENERATE,
           "map_resolution_m": number(ge=0.001, le=1, why="an image's cell size: map_server maps are 1–10 cm "
                                      "(gmapping and Cartographer save 5 cm)")}
 ROBOTS_SCHEMA = {"names": seq(string, "a list of robot names", 1), "radius_m": POSITIVE,
@@ -148,6 +149,13 @@ OUTPUT_SCHEMA = section(OutputSpec, {"rrd": optional_path, "scan_log_hz": POSITI
 def world_section(v) -> WorldSpec:
     w = section(lambda **kw: kw, WORLD_SCHEMA)(v, "world")  # room is checked below: it needs the center
     center = w.get("center", WorldSpec.center)
+    if "generate" in w:
+        other = [k for k in ("room", "map", "map_resolution_m") if k in w]
+        if other:
+            raise Invalid(f"world.{other[0]}", "expected either world.generate or world." + other[0] +
+                          ", not both (a generated world's walls are its plan's)")
+        return WorldSpec(w.get("center"), Room(None, None, ()), w.get("pillars", ()), w.get("objects", ()),
+                         generate=w["generate"])  # center None: the generator chooses it
     if "map" in w:
         if "room" in w:
             raise Invalid("world.room", "expected either world.room or world.map, not both (a map world's "

@@ -99,10 +99,30 @@ class MapGrid:
 
 
 @dataclass(frozen=True)
+class FloorplanSpec:
+    """``world.generate``: a building generated from ``seed`` (:mod:`circsim.world.floorplan`): ``size_m``
+    between the outer walls' centre lines (lower-left corner at (0, 0)), ``rooms`` rooms (the hall for the
+    robots' circle included), ``corridors`` (1: a spine along the long axis; 2: and one crossing it) of
+    ``corridor_m`` inside, doors ``door_m`` wide, walls ``wall_m`` thick, about ``furniture`` pieces per
+    room, cells of ``resolution_m``."""
+
+    kind: str = "floorplan"
+    seed: int = 0
+    size_m: Vec2 = (24.0, 16.0)
+    rooms: int = 8
+    corridors: int = 1
+    corridor_m: float = 1.6
+    door_m: float = 0.9
+    wall_m: float = 0.15
+    furniture: float = 3.0
+    resolution_m: float = 0.05
+
+
+@dataclass(frozen=True)
 class WorldSpec:
-    """The world: a ``room`` (rectangle or walls), or a ``map`` file (a ROS map_server YAML, or an image
-    of ``map_resolution_m`` cells; absolute once loaded) whose cells ``map_grid`` holds; pillars and
-    objects on top. Positions are in the room's or the map's frame, metres."""
+    """The world: a ``room`` (rectangle or walls), a ``map`` file (a ROS map_server YAML, or an image
+    of ``map_resolution_m`` cells; absolute once loaded) or a ``generate``d floor plan, whose cells
+    ``map_grid`` holds; pillars and objects on top. Positions are in the room's or the map's frame, metres."""
 
     center: Vec2 = (0.0, 0.0)
     room: Room = Room()
@@ -110,6 +130,7 @@ class WorldSpec:
     objects: tuple[Chair | OverturnedChair | Box, ...] = ()
     map: str | None = None
     map_resolution_m: float | None = None
+    generate: FloorplanSpec | None = None
     map_grid: MapGrid | None = field(default=None, compare=False, repr=False)
 
 

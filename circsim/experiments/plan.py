@@ -47,7 +47,7 @@ class RunTask:
     key: str
 
     def assignments(self) -> list[str]:
-        return [f"{k}={json.dumps(v)}" for k, v in self.grid] + [f"seed={self.seed}"]
+        return [f"{k}={value_text(v)}" for k, v in self.grid] + [f"seed={self.seed}"]
 
     def scenario(self) -> Scenario:
         return scenario_from_dict(self.raw, source=self.source).with_overrides(self.assignments())
@@ -56,6 +56,14 @@ class RunTask:
 def _norm(v):
     """Numbers as floats so that 0 and 0.0 are the same grid value (and the same run key)."""
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else v
+
+
+def value_text(v) -> str:
+    """A grid value as ``--set`` text: a whole number as an integer (``3``, not ``3.0``), so that integer
+    keys (``world.generate.seed``, ``world.generate.rooms``) can be swept; a number key reads 3 as 3.0."""
+    if isinstance(v, float) and v.is_integer() and abs(v) < 2 ** 53:
+        return str(int(v))
+    return json.dumps(v)
 
 
 def parse_grid(specs: Iterable[str]) -> list[Axis]:
@@ -91,7 +99,7 @@ def parse_grid(specs: Iterable[str]) -> list[Axis]:
 
 def _check(base: Scenario, combo, label: str) -> None:
     try:
-        base.with_overrides([f"{k}={json.dumps(v)}" for k, v in combo])
+        base.with_overrides([f"{k}={value_text(v)}" for k, v in combo])
     except ScenarioError as e:
         msg = str(e).split("): ", 1)[-1]  # "<file> (--set k=v): path: expectation" → "path: expectation"
         raise SweepError(f"{base.source}: {label}: {msg}") from None

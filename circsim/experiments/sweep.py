@@ -142,6 +142,9 @@ def flatten(rec: dict, task: RunTask, sc: Scenario) -> dict:
     # a rate of refusing correct hypotheses needs one: no cycle's best hypothesis correct (none accepted
     # correctly, none refused) is no data, not a rate of 0
     correct = rec["rejected_correct"] + sum(r["accepted"] for r in robots.values()) - rec["false_merges"]
+    row.update(gross_merges=rec.get("gross_merges"), drift_limited_merges=rec.get("drift_limited_merges"))
+    if sc.world.generate is not None:  # a generated building: where its generator put the common center
+        row["world.center.x"], row["world.center.y"] = sc.world.center
     row.update(false_merges=rec["false_merges"], rejected_correct=rec["rejected_correct"], cycles=cycles,
                rejected_correct_rate=rec["rejected_correct"] / cycles if cycles and correct > 0 else None)
     row["consensus_s"] = rec.get("consensus_s")

@@ -37,6 +37,15 @@ def test_links_out_of_docs_become_text_and_missing_ones_are_named(tmp_path):
                     "```sh\n[kept](../../benchmarks/bench.py)\n```\nafter again\n")
 
 
+def test_sphinx_roles_become_optional_cross_references():
+    html = ("use :func:<code>merge</code>, :class:<code>~merger.grid.OccupancyGrid</code> and "
+            ":mod:<code>merger.io</code>; <code>:not_a_role</code>")
+    assert hook().sphinx_roles(html) == (
+        'use <autoref identifier="merger.merge" optional><code>merge</code></autoref>, '
+        '<autoref identifier="merger.grid.OccupancyGrid" optional><code>OccupancyGrid</code></autoref> and '
+        '<autoref identifier="merger.io" optional><code>merger.io</code></autoref>; <code>:not_a_role</code>')
+
+
 def test_the_api_reference_documents_every_public_name_of_merger():
     import merger
 
@@ -89,3 +98,5 @@ def test_the_site_builds_strictly(tmp_path):
     assert r.returncode == 0, r.stderr
     html = (tmp_path / "site" / "api" / "merger" / "index.html").read_text()
     assert 'id="merger.merge"' in html and 'id="merger.MergeResult"' in html
+    # a docstring's :func:`merge` is a link to merge's entry, not text
+    assert '<a class="autorefs autorefs-internal" title="merger.merge" href="#merger.merge"><code>merge</code></a>' in html

@@ -1,10 +1,16 @@
-"""mkdocs hook: the guide's links to files outside docs/ (the README, benchmark scripts).
+"""mkdocs hooks: the guide's links to files outside docs/ (the README, benchmark scripts), and the
+docstrings' Sphinx roles in the API reference.
 
 The pages are read on GitHub and in a checkout as well as on the site, so they link the repository's files
 by relative path (``[bench_sim.py](../benchmarks/bench_sim.py)``). The site holds only docs/: there such a
 link would be broken. This hook checks each one against the repository — a target that does not exist is a
 warning, which ``mkdocs build --strict`` turns into a failed build — and renders an existing one as its text
 (the file's name), not as a link. Links inside docs/ are left to mkdocs' own validation (mkdocs.yml).
+
+The docstrings cite names as Sphinx does (``:func:`merge```, ``:class:`~merger.grid.OccupancyGrid```),
+which mkdocstrings renders as text. :func:`sphinx_roles` turns each into an optional cross-reference
+(``~``: the last part shown): a link when the name is documented on the site (a dotted name as written, a
+bare one as ``merger.NAME``), plain code otherwise — a name the site does not document is not an error.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ log = logging.getLogger("mkdocs.plugins.circsim_links")
 
 LINK = re.compile(r"(?<!!)\[([^\]]+)\]\(([^)\s]+)\)")
 FENCE = re.compile(r"^(```|~~~)", re.M)
+ROLE = re.compile(r":(?:func|class|meth|mod|attr|data|exc|obj):<code>(~?)([\w.]+)</code>")
 
 
 def outside_links(markdown: str, page_dir: Path, docs_dir: Path, repo: Path) -> tuple[str, list[str]]:
@@ -57,3 +64,20 @@ def on_page_markdown(markdown, page, config, files):
     for target in missing:
         log.warning("Doc file '%s' contains a link '%s' to no file of the repository", page.file.src_path, target)
     return text
+
+
+def sphinx_roles(html: str) -> str:
+    """``:role:<code>name</code>`` (a docstring's Sphinx role as rendered) → an optional autorefs
+    cross-reference showing the name (its last part after ``~``)."""
+
+    def replace(m: re.Match) -> str:
+        tilde, name = m.group(1), m.group(2)
+        identifier = name if "." in name else f"merger.{name}"
+        shown = name.rpartition(".")[2] if tilde else name
+        return f'<autoref identifier="{identifier}" optional><code>{shown}</code></autoref>'
+
+    return ROLE.sub(replace, html)
+
+
+def on_page_content(html, page, config, files):
+    return sphinx_roles(html)

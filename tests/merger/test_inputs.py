@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from merger.grid import OccupancyGrid
-from merger.inputs import MergeInputError, check_center, check_centers, checked_maps, params_of, same_resolution
+from merger.inputs import (
+    MergeInputError,
+    check_center,
+    check_centers,
+    checked_maps,
+    params_of,
+    same_resolution,
+)
 from merger.io.mapread import MAX_MAP_CELLS
 from merger.team.params import MergeParams
 

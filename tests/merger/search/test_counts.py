@@ -11,7 +11,13 @@ from hypothesis import strategies as st
 from merger.grid import FREE_S, OCCUPIED_S
 from merger.lattice import moving_states_numpy, rotation_entries
 from merger.measures import count_cells
-from merger.search.counts import exact_counts, exact_counts_sparse, fill_moving, moving_points_all, sparse_moving
+from merger.search.counts import (
+    exact_counts,
+    exact_counts_sparse,
+    fill_moving,
+    moving_points_all,
+    sparse_moving,
+)
 from merger.search.prepared import Prepared
 from tests.strategies import adversarial_problem
 

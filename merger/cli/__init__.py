@@ -87,7 +87,6 @@ def params_from(args) -> MergeParams:
         raise UsageError(f"invalid merge parameters: {e}") from None
 
 
-
 def exit_now(code: int) -> None:
     """End the process at once with ``code``: Python's exit would first wait for the merge pool's threads to
     finish the searches they are running (compiled kernels cannot be interrupted). Nothing is lost: every

@@ -142,11 +142,7 @@ def _layout(rng, c: _Canvas, L, D, res, n_rooms, corridors, cw, min_w, hall_w, s
     hall_side = 0 if hall_low else 1
     spans = [(0, L)]
     if corridors == 2:
-        need = hall_w + cw + min_w
-        if L < need:
-            raise FloorplanError("corridors", f"expected 1: a crossing corridor needs a building at least "
-                                 f"{need * res:.2f} m long (the hall, a corridor, a room), got {size_m[0]:g} x "
-                                 f"{size_m[1]:g} m")
+        # L >= D >= hall_w + cw + min_w (checked above): a crossing corridor always fits
         choices = list(range(min_w, L - cw - hall_w + 1)) + list(range(hall_w, L - cw - min_w + 1))
         uc = int(choices[int(rng.integers(len(choices)))])
         corr.append((uc, 0, uc + cw, D))

@@ -5,11 +5,12 @@ Run from the repository root::
     python benchmarks/bench_large_teams.py                                 # the default set below
     python benchmarks/bench_large_teams.py --run lroom12:60:1,2,3 --run hall16:30:1
     python benchmarks/bench_large_teams.py --baseline /tmp/old --run hall16:30:1   # the same runs on another checkout
+    python benchmarks/bench_large_teams.py --scaling 20    # N = 3 … 32 robots in one world, growth exponents
 
 A run is SCENARIO:SECONDS:SEEDS — a bundled scenario or one of ``benchmarks/scenarios/`` (``lroom12``: 12
 robots in an L-shaped wall room written from the README's template, centers 0.2 m off; ``hall16``: 16
 robots, 20 × 14 m; ``hall32``: 32 robots, 26 × 20 m, 5 m circle; none tuned on), every merger setting
-default; ``hall8w`` is the bundled hall8 with ``merger.window_m=0.5`` and centers 0.15 m off. Each run is
+default; ``scaleN`` is hall32's world with N robots on its circle; ``hall8w`` is the bundled hall8 with ``merger.window_m=0.5`` and centers 0.15 m off. Each run is
 its own process, one after the other, so its resident memory is its own; ``--baseline DIR`` runs the
 same list with the code of the checkout DIR (e.g. ``git worktree add /tmp/old <commit>``) in the same
 invocation, so that ratios come from one machine state. Reported per run: false merges by kind (gross /
@@ -34,7 +35,13 @@ DEFAULT_RUNS = ["lroom12:60:1", "hall16:30:1", "hall32:20:1", "hall8w:60:1"]
 ALIASES = {"hall8w": ("hall8", ["merger.window_m=0.5", "center_error=0.15"])}
 
 
+SCALING_NS = (3, 4, 8, 12, 16, 32)
+
+
 def scenario_of(name: str):
+    if name.startswith("scale") and name[5:].isdigit():  # hall32's world with N robots on its 5 m circle
+        n = int(name[5:])
+        return str(SCENARIOS / "hall32.yaml"), [f"robots.names=[{','.join(f'S{k:02d}' for k in range(1, n + 1))}]"]
     base, extra = ALIASES.get(name, (name, []))
     path = SCENARIOS / f"{base}.yaml"
     return (str(path) if path.exists() else base), extra
@@ -91,15 +98,44 @@ def table(rows: list[dict], label: str) -> str:
     return "\n".join(lines)
 
 
+def scaling_table(rows: list[dict]) -> str:
+    """Bench seconds per simulated second and the per-robot cycle cost against N, with the exponent of
+    their growth (a least-squares line through log N and the log of each figure)."""
+    ok = [r for r in rows if "error" not in r]
+    lines = ["## scaling: one world (hall32's 26 x 20 m hall, 5 m circle), N robots",
+             "| N | bench s per sim s | per-robot cycle ms (median) | false (gross/other/drift) | merged | RSS MB |",
+             "|---|---|---|---|---|---|"]
+    for r in ok:
+        lines.append(f"| {r['robots']} | {1 / r['realtime']:.2f} | {r['cycle_ms']:.0f} | {r['gross']}/{r['other']}/"
+                     f"{r['drift']} | {r['merged']}/{r['robots']} | {r['rss_mb']} |")
+    if len(ok) >= 2:
+        import numpy as np
+        n = np.log([r["robots"] for r in ok])
+        for label, ys in (("bench s per sim s", [1 / r["realtime"] for r in ok]),
+                          ("per-robot cycle ms", [r["cycle_ms"] for r in ok])):
+            lines.append(f"growth of {label}: N^{np.polyfit(n, np.log(ys), 1)[0]:.2f}")
+    return "\n".join(lines)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", action="append", help="SCENARIO:SECONDS:SEED[,SEED...] (repeatable)")
     ap.add_argument("--baseline", type=Path, help="another checkout to run the same list with")
+    ap.add_argument("--scaling", type=float, metavar="SECONDS",
+                    help=f"instead: hall32's world with N = {', '.join(map(str, SCALING_NS))} robots for SECONDS each "
+                         "(seed 1), and the growth exponents")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         name, dur, seed = args.child.split(":")
         print(json.dumps(child(name, float(dur), int(seed))))
+        return
+    if args.scaling:
+        rows = []
+        for n in SCALING_NS:
+            rows.append(run_one(ROOT, f"scale{n}:{args.scaling:g}", 1))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+        print(scaling_table(rows), flush=True)
         return
     specs = args.run or DEFAULT_RUNS
     codes = [("this checkout", ROOT)] + ([("baseline " + str(args.baseline), args.baseline)] if args.baseline else [])

@@ -102,6 +102,10 @@ class Track:
     candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
     recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
     last: object = None  # the last result (used again while nothing calls for a new global search)
+    local_rois: dict = field(default_factory=dict)  # map name → its ROI states at the last local retry of a
+    # pair without an accepted answer, and where it was tried (tree.py: retried, like a failed global
+    # candidate, only when its maps change or the team places it elsewhere)
+    local_at: tuple | None = None
     last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
     globals: int = 0
     locals: int = 0
@@ -155,8 +159,12 @@ class Tracker:
             return tr.recheck
         if now - tr.global_s >= self.period_s - 1e-9:
             return f"last global search {now - tr.global_s:.1f} s ago (research_period_s {self.period_s:g})"
+        return self.changed(tr.rois, maps, roi_m, change)
+
+    def changed(self, rois: dict, maps, roi_m: float, change: float) -> str:
+        """Which of ``maps``' ROI changed by more than ``change`` since ``rois`` (name → states), or ""."""
         for m in maps:
-            c = roi_change(tr.rois.get(m.name), self.roi(m, roi_m))
+            c = roi_change(rois.get(m.name), self.roi(m, roi_m))
             if c > change:
                 return f"{m.name}'s ROI changed by {c:.1%} (more than {change:g})"
         return ""

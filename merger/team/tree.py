@@ -51,7 +51,7 @@ from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResu
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
 from .superpose import fuse
-from .track import Tracker, decide
+from .track import UNTRACKED_CHANGE_FACTOR, Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
 
@@ -183,7 +183,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             # a global one only at the staleness bound; a verified answer there is followed from then on
             at = composed(r, m)
             if at is not None:
+                if at == tr.local_at and not tracker.changed(tr.local_rois, sub, params.roi_m,
+                                                             tracker.change * UNTRACKED_CHANGE_FACTOR):
+                    return tr.last  # failed there, and neither its maps nor the team's placement changed since
                 loc = compute_local(r, m, at)
+                tr.local_at, tr.local_rois = at, {x.name: tracker.roi(x, params.roi_m) for x in sub}
                 tr.locals += 1
                 if loc.verification.passed:
                     tr.tracked, tr.placement, tr.nu_ref = loc, _placement(loc), loc.verification.nu

@@ -16,7 +16,7 @@ import time
 
 from ..team.frames import fused_layers
 from ..team.orders import MapInput, MergeParams, OrderResult, TeamMergeResult
-from ..team.superpose import fuse
+from ..team.superpose import fuse_grids
 from .base import PairAnswer
 
 
@@ -70,7 +70,7 @@ def merge_pairwise(align, maps: list[MapInput], params: MergeParams, *, cache: d
     trans = {names[k]: place[k][1] for k in tree}
     placed_maps = [maps[k] for k in tree]
     layers = fused_layers(placed_maps, theta, trans)
-    merged = type(layers[0])(fuse([g.states for g in layers]), layers[0].resolution, layers[0].origin)
+    merged = fuse_grids(layers)
     order = OrderResult(tuple(names[k] for k in tree), theta, (), {}, ok,
                         reasons or ("" if ok else "no pair accepted"), trans)
     return TeamMergeResult(maps[0].name, (order,), order if ok else None, merged,

@@ -143,13 +143,13 @@ def merge_files(res, maps: list[MapInput], out: Path, force: bool) -> dict[Path,
     """The merged map (OUT.yaml/.pgm) and its overlay (OUT_overlay.png) as {path: bytes}; none when no order
     passed verification and ``force`` is off."""
     from ..team.frames import fused_layers
-    from ..team.superpose import fuse
+    from ..team.superpose import fuse_grids
 
     if res.accepted:
         merged, layers = res.merged, [res.layers[m.name] for m in maps]
     elif force:
         layers = fused_layers(maps, res.top.theta_deg, res.top.translation_m)
-        merged = type(layers[0])(fuse([g.states for g in layers]), layers[0].resolution, layers[0].origin)
+        merged = fuse_grids(layers)
     else:
         return {}
     files = map_files(merged, out)

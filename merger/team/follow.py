@@ -16,12 +16,10 @@ from __future__ import annotations
 
 import time
 
-from ..grid import OccupancyGrid
-from .frames import Warps, compose, place_on_frame0
+from .frames import Warps, compose, merged_on_frame0
 from .memo import Memo
 from .orders import _order_result, align_order, merge_team, refine_chosen
 from .params import MapInput, MergeParams, TeamMergeResult
-from .superpose import fuse
 from .track import Tracker, decide
 
 TEAM = "team"
@@ -54,9 +52,7 @@ def local_cycle(maps: list[MapInput], params: MergeParams, tracked: TeamMergeRes
     chosen, merged, layers = None, None, {}
     if res.accepted:
         chosen, place0 = refine_chosen(maps, place0, warps, params, res)
-        lay = place_on_frame0(maps, place0, warps)
-        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
-        layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
+        merged, layers = merged_on_frame0(maps, place0, warps)
     return TeamMergeResult(maps[0].name, (chosen or res,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
                            "", (), memo.take_charged_ms() if memo is not None else 0.0)
 

@@ -20,6 +20,7 @@ from ..grid import OccupancyGrid
 from ..search import wrap_deg
 from ..transform import canvas, footprint, paste, rotation, warp_grid
 from .params import ORIGIN, MapInput, MergeParams, Placement
+from .superpose import fuse_grids
 from .verify import Verification, check_pair
 
 
@@ -110,6 +111,14 @@ def place_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
     base = maps[0]
     cv = canvas(base.grid, [warps.placed(i, *place0[i]) for i in range(1, len(maps))], base.center)
     return [paste(base.grid, cv)] + [paste(warps.get(0, i, *place0[i]), cv) for i in range(1, len(maps))]
+
+
+def merged_on_frame0(maps: list[MapInput], place0: dict[int, Placement],
+                     warps: Warps | None = None) -> tuple[OccupancyGrid, dict[str, OccupancyGrid]]:
+    """The maps placed on map 0's frame (:func:`place_on_frame0`) and fused: the merged map a user gets
+    (:func:`merger.team.superpose.fuse`) and each map's layer by name."""
+    lay = place_on_frame0(maps, place0, warps)
+    return fuse_grids(lay), {m.name: g for m, g in zip(maps, lay, strict=True)}
 
 
 def fused_layers(maps: list[MapInput], theta_deg: dict[str, float],

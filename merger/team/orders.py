@@ -32,11 +32,11 @@ from ..search.local import local_search
 from ..transform import canvas, overlap, paste
 from .ambiguity import PairAmbiguity, resolve
 from .evidence import refine
-from .frames import Warps, compose, place_on_frame0, shifted
+from .frames import Warps, compose, merged_on_frame0, place_on_frame0, shifted
 from .memo import Memo, map_key
 from .params import ORIGIN, MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
-from .superpose import fuse, superpose
+from .superpose import fuse_grids, superpose
 from .verify import Verification, no_evidence, pairwise, refine_limit_m, refined_placement, verify
 
 AMBIGUOUS_DEG = 10.0  # the ambiguity rule: another accepted order places a map more than this apart in angle
@@ -215,9 +215,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if chosen is not None:
         chosen, place = refine_chosen(maps, place, warps, params, chosen)
         results[best] = chosen
-        lay = place_on_frame0(maps, place, warps)
-        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
-        layers = {m.name: g for m, g in zip(maps, lay, strict=True)}
+        merged, layers = merged_on_frame0(maps, place, warps)
     return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
                            (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb),
                            memo.take_charged_ms() if memo is not None else 0.0)
@@ -269,7 +267,7 @@ def refine_chosen(maps: list[MapInput], place: dict[int, Placement], warps: Warp
     lay = place_on_frame0(maps, place, warps)
     out = dict(place)
     for k in todo:
-        others = OccupancyGrid(fuse([g.states for j, g in enumerate(lay) if j != k]), lay[0].resolution, lay[0].origin)
+        others = fuse_grids([g for j, g in enumerate(lay) if j != k])
         th, t = refined_placement(others, lay[k], shifted(maps[0].center, place[k][1]), *place[k], params)
         out[k] = (wrap_deg(th), t)
     return replace(chosen, theta_deg={names[k]: out[k][0] for k in place},

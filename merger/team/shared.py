@@ -17,10 +17,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..grid import OccupancyGrid
-from .frames import Warps, compose, place_on_frame0
+from .frames import Warps, compose, merged_on_frame0
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
-from .superpose import fuse
 from .verify import pairwise
 
 
@@ -122,10 +120,8 @@ def adopt(maps: list[MapInput], msg: HypothesisMessage, current: TeamMergeResult
     if cur_sum is not None and not got.nu_sum > cur_sum:
         return Adoption(msg.robot, msg.stamp, False, f"{msg.robot}'s hypothesis verifies on {me}'s maps but "
                         f"scores no higher: Σν {got.nu_sum:.3f} vs {cur_sum:.3f} held", got, got.nu_sum, cur_sum)
-    lay = place_on_frame0(held, {i: mine[m.name] for i, m in enumerate(held)}, warps)
-    merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
-    res = TeamMergeResult(me, (got,), got, merged, {m.name: g for m, g in zip(held, lay, strict=True)},
-                          (time.perf_counter() - t0) * 1e3)
+    merged, layers = merged_on_frame0(held, {i: mine[m.name] for i, m in enumerate(held)}, warps)
+    res = TeamMergeResult(me, (got,), got, merged, layers, (time.perf_counter() - t0) * 1e3)
     why = "none held" if cur_sum is None else f"Σν {got.nu_sum:.3f} > {cur_sum:.3f} held"
     return Adoption(msg.robot, msg.stamp, True, f"adopted {msg.robot}'s hypothesis ({why})", got, got.nu_sum,
                     cur_sum, res)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..grid import FREE_S, OCCUPIED_S, UNKNOWN_S
+from ..grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 
 # superposition of states a and b at index 3a + b (codes unknown 0, free 1, occupied 2), for cv2.LUT
 _SUPERPOSE = np.zeros(256, np.uint8)
@@ -36,3 +36,11 @@ def fuse(layers: list[np.ndarray]) -> np.ndarray:
     if not layers:
         raise ValueError("fuse needs at least one layer")
     return np.maximum.reduce([np.asarray(x, np.uint8) for x in layers])
+
+
+def fuse_grids(grids: list[OccupancyGrid]) -> OccupancyGrid:
+    """:func:`fuse` of grids that share one canvas (same shape, resolution and origin: e.g. the layers of
+    :func:`merger.team.frames.place_on_frame0`), as a grid on that canvas."""
+    if not grids:
+        raise ValueError("fuse_grids needs at least one grid")
+    return OccupancyGrid(fuse([g.states for g in grids]), grids[0].resolution, grids[0].origin)

@@ -39,19 +39,17 @@ import time
 
 import numpy as np
 
-from ..grid import OccupancyGrid
 from ..search import Alignment, search
 from ..search.local import local_search
 from .ambiguity import resolve, rival
 from .consensus import SE2, AssemblyReport, Measurement, Paths, assemble
-from .frames import Warps, compose, place_on_frame0, shifted
+from .frames import Warps, compose, merged_on_frame0, shifted
 from .memo import Memo, map_key
 from .orders import _beyond, _pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
-from .superpose import fuse
-from .track import UNTRACKED_CHANGE_FACTOR, Tracker, decide
+from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
 
@@ -183,8 +181,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             # a global one only at the staleness bound; a verified answer there is followed from then on
             at = composed(r, m)
             if at is not None:
-                if at == tr.local_at and not tracker.changed(tr.local_rois, sub, params.roi_m,
-                                                             tracker.change * UNTRACKED_CHANGE_FACTOR):
+                if at == tr.local_at and not tracker.changed(tr.local_rois, sub, params.roi_m, tracker.change):
                     return tr.last  # failed there, and neither its maps nor the team's placement changed since
                 loc = compute_local(r, m, at)
                 tr.local_at, tr.local_rois = at, {x.name: tracker.roi(x, params.roi_m) for x in sub}
@@ -284,9 +281,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if chosen is not None:
         chosen, sub_place = refine_chosen(sub, sub_place, sw, params, chosen)
         result = chosen
-        lay = place_on_frame0(sub, sub_place, sw)
-        merged = OccupancyGrid(fuse([g.states for g in lay]), lay[0].resolution, lay[0].origin)
-        layers = {m.name: g for m, g in zip(sub, lay, strict=True)}
+        merged, layers = merged_on_frame0(sub, sub_place, sw)
     report = AssemblyReport(len(team.used), {k: v for k, v in team.rejected.items()},
                             {names[k]: v for k, v in team.left_out.items()}, tuple(team.joins))
     return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,

@@ -265,9 +265,9 @@ def test_a_pair_whose_best_alignment_puts_both_robots_in_one_place_takes_its_run
 
 def test_a_linked_pair_that_failed_locally_is_retried_only_when_its_maps_or_the_placement_change(views):
     """A pair without an accepted answer that the team's placement links is searched locally where the
-    placement puts it; after it failed there it is not searched again until one of its maps changes or the
-    placement moves (as a failed global candidate, merger.team.track) — the 16-robot hall's never-verified
-    pairs were searched again at every map version."""
+    placement puts it; after it failed there it is not searched again until one of its maps changes by more
+    than research_change or the placement moves — the 16-robot hall's never-verified pairs were searched
+    again at every map version."""
     from merger.team.track import Tracker
 
     _, names, maps, truth = views

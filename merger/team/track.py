@@ -102,10 +102,6 @@ class Track:
     candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
     recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
     last: object = None  # the last result (used again while nothing calls for a new global search)
-    local_rois: dict = field(default_factory=dict)  # map name → its ROI states at the last local retry of a
-    # pair without an accepted answer, and where it was tried (tree.py: after a failure there it is retried
-    # only when one of its maps changed by more than research_change, or the team places it elsewhere)
-    local_at: tuple | None = None
     last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
     globals: int = 0
     locals: int = 0

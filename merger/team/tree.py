@@ -181,10 +181,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             # a global one only at the staleness bound; a verified answer there is followed from then on
             at = composed(r, m)
             if at is not None:
-                if at == tr.local_at and not tracker.changed(tr.local_rois, sub, params.roi_m, tracker.change):
-                    return tr.last  # failed there, and neither its maps nor the team's placement changed since
                 loc = compute_local(r, m, at)
-                tr.local_at, tr.local_rois = at, {x.name: tracker.roi(x, params.roi_m) for x in sub}
                 tr.locals += 1
                 if loc.verification.passed:
                     tr.tracked, tr.placement, tr.nu_ref = loc, _placement(loc), loc.verification.nu

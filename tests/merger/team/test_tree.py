@@ -262,38 +262,3 @@ def test_a_pair_whose_best_alignment_puts_both_robots_in_one_place_takes_its_run
     far = pair_result(apart, 0, 1, params, Warps(apart))
     assert far.alignment.theta_deg == base.alignment.theta_deg and far.verification.passed
 
-
-def test_a_linked_pair_that_failed_locally_is_retried_only_when_its_maps_or_the_placement_change(views):
-    """A pair without an accepted answer that the team's placement links is searched locally where the
-    placement puts it; after it failed there it is not searched again until one of its maps changes by more
-    than research_change or the placement moves — the 16-robot hall's never-verified pairs were searched
-    again at every map version."""
-    from merger.team.track import Tracker
-
-    _, names, maps, truth = views
-    g, c = maps[2]
-    blank = type(g).unknown(g.height, g.width, g.resolution, g.origin)
-    params, tracker = MergeParams(roi_m=8.0), Tracker()
-    key = "|".join(sorted((names[0], names[2])))
-    placed = {n: (truth[n], (0.0, 0.0)) for n in names}
-
-    def cycle(now, third, version, placement=placed):
-        tracker.team_place = dict(placement)  # the team's placement the robot holds links every map
-        return merge_tree(_inputs(names, [maps[0], maps[1], (third, c)], [1, 1, version]), params,
-                          tracker=tracker, now=now)
-
-    cycle(0.0, blank, 1)  # first cycle: every pair searched globally
-    tr = tracker.tracks[key]
-    assert tr.globals == 1 and tr.locals == 0 and tr.tracked is None
-    cycle(1.0, blank, 2)  # a new version, linked by the placement: the local search there (it fails)
-    assert (tr.globals, tr.locals) == (1, 1) and tr.tracked is None and not tr.last.verification.passed
-    last = tr.last
-    cycle(2.0, blank, 3)  # nothing changed in its maps, nor the placement: not searched again
-    assert (tr.globals, tr.locals) == (1, 1) and tr.last is last
-    moved = dict(placed, **{names[2]: (truth[names[2]] + 5.0, (0.0, 0.0))})
-    cycle(3.0, blank, 4, moved)  # the placement moved: searched there
-    assert (tr.globals, tr.locals) == (1, 2)
-    cycle(4.0, g, 5, moved)  # its map changed: searched again (and now it verifies and is tracked)
-    assert tr.globals == 1 and tr.locals == 3 and tr.tracked is not None
-    assert abs(angle_diff_deg(tr.tracked.alignment.theta_deg, truth[names[2]] - truth[names[0]])) <= 1.0 or \
-        abs(angle_diff_deg(tr.tracked.alignment.theta_deg, truth[names[0]] - truth[names[2]])) <= 1.0

@@ -102,6 +102,8 @@ class Track:
     candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
     recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
     last: object = None  # the last result (used again while nothing calls for a new global search)
+    anchor: tuple | None = None  # the placement the tracked answer was found at (a global search, or a local
+    # one about the team's placement): the local re-verifications follow it only within SAME_HYPOTHESIS_*
     last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
     globals: int = 0
     locals: int = 0
@@ -209,7 +211,7 @@ def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, g
             g_place = placement_of(glob)
             if tr.placement is not None and not agree(g_place, tr.placement):
                 tracker.switched(key, tr, now, tr.placement, g_place)
-            tr.tracked, tr.placement, tr.nu_ref, tr.candidate = glob, g_place, nu_of(glob), None
+            tr.tracked, tr.placement, tr.nu_ref, tr.candidate, tr.anchor = glob, g_place, nu_of(glob), None, g_place
         else:
             tr.tracked, tr.placement, tr.candidate = None, None, None
         return glob
@@ -227,5 +229,5 @@ def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, g
             return local
     if tr.placement is not None and not agree(g_place, tr.placement):
         tracker.switched(key, tr, now, tr.placement, g_place)
-    tr.tracked, tr.placement, tr.nu_ref, tr.candidate = glob, g_place, nu_of(glob), None
+    tr.tracked, tr.placement, tr.nu_ref, tr.candidate, tr.anchor = glob, g_place, nu_of(glob), None, g_place
     return glob

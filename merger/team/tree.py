@@ -49,7 +49,7 @@ from .orders import _beyond, _pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
-from .track import Tracker, decide
+from .track import Tracker, agree, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
 
@@ -185,12 +185,16 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                 tr.locals += 1
                 if loc.verification.passed:
                     tr.tracked, tr.placement, tr.nu_ref = loc, _placement(loc), loc.verification.nu
+                    tr.anchor = tr.placement
                     tracker.accepted(tr, tr.placement)
                 tr.last = loc
                 return loc
         if tr.tracked is not None:
             local = compute_local(r, m, (tr.tracked.alignment.theta_grid_deg, tr.tracked.alignment.cells))
             local_ok = local.verification.passed and local.verification.nu >= tr.nu_ref - tracker.drop
+            # a local answer that has walked away from where its hypothesis was found (along a corridor's
+            # flat ridge, ±3 cells a version) is another hypothesis: the global search decides
+            local_ok = local_ok and (tr.anchor is None or agree(_placement(local), tr.anchor))
             if local_ok and not tracker.due(tr, sub, params.roi_m, now):
                 tr.locals += 1
                 tr.tracked, tr.placement = local, _placement(local)

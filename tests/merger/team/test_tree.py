@@ -262,3 +262,24 @@ def test_a_pair_whose_best_alignment_puts_both_robots_in_one_place_takes_its_run
     far = pair_result(apart, 0, 1, params, Warps(apart))
     assert far.alignment.theta_deg == base.alignment.theta_deg and far.verification.passed
 
+
+
+def test_a_local_answer_that_walked_away_from_its_hypothesis_is_searched_globally(views):
+    """The local re-verification follows a tracked answer ±3° and ±3 cells a version; along a corridor's
+    flat ridge it can walk a placement metres away, one version at a time (a generated floor plan's bare
+    hall: a map placed 0.53 then 0.70 m off). A local answer more than 10° or 0.2 m from where its
+    hypothesis was found (its anchor) is another hypothesis: the global search decides."""
+    from merger.team.track import Tracker, agree
+
+    _, names, maps, truth = views
+    params, tracker = MergeParams(roi_m=8.0), Tracker()
+    merge_tree(_inputs(names, maps, [1, 1, 1]), params, tracker=tracker, now=0.0)
+    tracked = sorted(k for k, tr in tracker.tracks.items() if tr.tracked is not None)
+    assert len(tracked) >= 2 and all(tracker.tracks[k].anchor is not None for k in tracked)
+    walked, kept = tracker.tracks[tracked[0]], tracker.tracks[tracked[1]]
+    true_anchor = walked.anchor
+    th, (x, y) = walked.anchor
+    walked.anchor = (th, (x + 0.5, y))  # as if the local answers had walked 0.5 m from where it was found
+    merge_tree(_inputs(names, maps, [2, 2, 2]), params, tracker=tracker, now=1.0)
+    assert walked.globals == 2 and kept.globals == 1 and kept.locals == 1  # only the walked one searched again
+    assert agree(walked.anchor, true_anchor) and agree(walked.placement, true_anchor)  # found where it was

@@ -4,7 +4,7 @@ With the ``orders`` strategy a cycle's hypothesis is one merge order's placement
 cycle is accepted, the robot follows that hypothesis: at each new map version it re-aligns the chosen
 order step by step with the exact local search about the tracked placements (each step onto the
 superposition of the maps before it, as the order's global search does) and verifies the result on the
-whole maps like any order (:func:`merger.team.orders._order_result`). That is the cycle's answer when
+whole maps like any order (:func:`merger.team.orders.order_result`). That is the cycle's answer when
 it passes and its mean ν is within ``research_drop`` of the last global cycle's; otherwise — and when
 the tracker says a global search is due (a map's ROI changed, the staleness period, a candidate to
 confirm), or the held maps are not the hypothesis's — the cycle is the thesis's: every order searched
@@ -18,7 +18,7 @@ import time
 
 from .frames import Warps, compose, merged_on_frame0
 from .memo import Memo
-from .orders import _order_result, align_order, merge_team, refine_chosen
+from .orders import align_order, merge_team, order_result, refine_chosen
 from .params import MapInput, MergeParams, TeamMergeResult
 from .track import Tracker, agree, decide
 
@@ -48,7 +48,7 @@ def local_cycle(maps: list[MapInput], params: MergeParams, tracked: TeamMergeRes
     around = compose(onto0, 0, order[0])  # the placements onto the order's first map
     warps = Warps(maps)
     place0, steps, amb = align_order(maps, order, params, None, warps, memo, around=around)
-    res = _order_result(maps, order, params, place0, steps, warps, amb)
+    res = order_result(maps, order, params, place0, steps, warps, amb)
     chosen, merged, layers = None, None, {}
     if res.accepted:
         chosen, place0 = refine_chosen(maps, place0, warps, params, res)

@@ -54,7 +54,7 @@ def merge_orders(n: int, names=None) -> list[tuple[int, ...]]:
     return [(rank[a], rank[b], *[rank[k] for k in range(n) if k not in (a, b)]) for a, b in pairwise([None] * n)]
 
 
-def _pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
+def pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
     """What the search of ``mov`` onto ``ref`` depends on (None: the maps carry no version)."""
     if ref.version is None or mov.version is None:
         return None
@@ -76,7 +76,7 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
     the steps' ambiguities (:func:`merger.team.ambiguity.resolve`: a step whose runner-up scores within the
     margin is verified on the whole maps under both hypotheses, and takes the one that evidence separates).
 
-    ``reuse``: alignments of raw map pairs by :func:`_pair_key`; the order's first step is taken from it
+    ``reuse``: alignments of raw map pairs by :func:`pair_key`; the order's first step is taken from it
     when its two maps are unchanged, and stored in it otherwise (searches are deterministic, so a reused
     alignment is the one the search would return). ``warps``: the cycle's shared :class:`Warps`.
     ``memo``: steps shared with other callers (:mod:`merger.team.memo`), keyed by the maps the step depends on:
@@ -90,7 +90,7 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
     steps, ambiguous = [], []
     for k in order[1:]:
         m = maps[k]
-        key = _pair_key(first, m, params) if reuse is not None and k == order[1] and around is None else None
+        key = pair_key(first, m, params) if reuse is not None and k == order[1] and around is None else None
         hit = reuse.get(key) if key is not None else None
         if hit is None and around is not None:
             prob = problem_for(sup, first.center, m, params)
@@ -136,8 +136,11 @@ def _step_check(onto: OccupancyGrid, warps: Warps, frame: int, k: int, params: M
     return check
 
 
-def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
-                  warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
+def order_result(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, place0, steps,
+                 warps: Warps, ambiguous: tuple[PairAmbiguity, ...] = ()) -> OrderResult:
+    """An order's placements (``place0``: (θ, t) onto map 0 per index) verified on the whole maps: every pair
+    of maps by the strategy's rule (the thesis's, ν ≥ ν_min with the minimum support), refused when one
+    fails, a step had too little evidence, or an ambiguous pair of the order was left unresolved."""
     if params.verification != "roi_score":
         checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
@@ -154,7 +157,7 @@ def _order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePar
                        {maps[k].name: place0[k][1] for k in order})
 
 
-def _beyond(order: OrderResult, settled=None) -> str:
+def beyond_refusal(order: OrderResult, settled=None) -> str:
     """Why the chosen order is refused because a search of it found a better alignment outside the
     translation window ("" if none did; see :func:`merger.search.beyond_window`). The steps' guards are
     computed side by side (merger.team.pool; each is a pure function of its search, the same on any schedule).
@@ -194,17 +197,17 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     # the orders are independent: searched side by side (merger.team.pool; the same result on any schedule)
     aligned = parallel_map(lambda o: align_order(maps, o, params, reuse, warps, memo), orders)
     if reuse is not None:  # keep only this cycle's pairs
-        live = {_pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
+        live = {pair_key(maps[o[0]], maps[o[1]], params) for o in orders}
         for key in [k for k in reuse if k not in live]:
             del reuse[key]
-    results = [_order_result(maps, o, params, place0, steps, warps, amb)
+    results = [order_result(maps, o, params, place0, steps, warps, amb)
                for o, (place0, steps, amb) in zip(orders, aligned, strict=True)]
     accepted = [k for k, r in enumerate(results) if r.accepted]
     chosen, merged, layers, ambiguity = None, None, {}, ""
     if accepted:
         best = max(accepted, key=lambda k: results[k].nu_sum)  # the first of equal sums
         ambiguity = _ambiguity(results, accepted, best, params.margin) or \
-            _beyond(results[best], whole_map_guard(maps, orders[best], params, warps))
+            beyond_refusal(results[best], whole_map_guard(maps, orders[best], params, warps))
         chosen = None if ambiguity else results[best]
     place = aligned[best][0] if chosen is not None else None
     if chosen is not None and params.combine_orders and params.verification != "roi_score":
@@ -302,7 +305,7 @@ def _combine(maps: list[MapInput], results: list[OrderResult], places: list[dict
         tx = sum(places[k][i][1][0] for k in agree) / len(agree)
         ty = sum(places[k][i][1][1] for k in agree) / len(agree)
         place[i] = (0.0, ORIGIN) if i == 0 else (wrap_deg(th0 + dth), (float(tx), float(ty)))
-    fused = _order_result(maps, order, params, place, b.steps, warps)
+    fused = order_result(maps, order, params, place, b.steps, warps)
     if not fused.accepted:
         return None
     return replace(fused, combined=tuple(results[k].order for k in agree)), place

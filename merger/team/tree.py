@@ -23,7 +23,7 @@ assembled:
    exactly: the thesis's rule (every pair ≥ ν_min) rejected every 6-robot cycle of the hall after 15 s,
    all of them correct. Checking all N(N−1)/2 pairs for the record only was 11% of the 16-robot hall's
    time (issue 43); the result's ``checks`` are the tree edges'.
-5. as with the orders (:func:`merger.team.orders._beyond`), an assembly is refused when a tree edge's search
+5. as with the orders (:func:`merger.team.orders.beyond_refusal`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
@@ -45,7 +45,7 @@ from .ambiguity import resolve, rival
 from .consensus import SE2, AssemblyReport, Measurement, Paths, assemble
 from .frames import Warps, compose, merged_on_frame0, shifted
 from .memo import Memo, map_key
-from .orders import _beyond, _pair_key, problem_for, refine_chosen
+from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
@@ -137,7 +137,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         # every robot searches a pair the same way: the map whose name comes first is the reference (so
         # teammates' results are the same, and shared through the memo)
         r, m = (j, i) if maps[j].name < maps[i].name else (i, j)
-        key = _pair_key(maps[r], maps[m], params) if reuse is not None else None
+        key = pair_key(maps[r], maps[m], params) if reuse is not None else None
         hit = reuse.get(key) if key is not None else None
         live.add(key)
         if hit is None:
@@ -275,7 +275,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     steps = tuple((p.moving, p.alignment) for p in (pairs[(min(a, b), max(a, b))] for a, b in links))
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
-    guard = _beyond(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
+    guard = beyond_refusal(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
     chosen, merged, layers = (result, None, {}) if result.accepted and not guard else (None, None, {})
     if chosen is not None and tracker is not None:
         tracker.team_place = {maps[k].name: place[k] for k in order}

@@ -9,7 +9,7 @@ import pytest
 from merger.measures import Counts
 from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
-from merger.team.orders import MapInput, MergeParams, _pair_key, merge_team
+from merger.team.orders import MapInput, MergeParams, merge_team, pair_key
 from merger.team.posegraph import PairResult
 from merger.team.tree import merge_tree
 from merger.team.verify import Verification
@@ -72,7 +72,7 @@ def test_a_false_pair_that_closes_an_inconsistent_loop_is_rejected(views):
     reuse = {}
     good = merge_tree(inputs, params, reuse=reuse)
     assert good.accepted and len(reuse) == 3
-    key = _pair_key(inputs[1], inputs[2], params)
+    key = pair_key(inputs[1], inputs[2], params)
     al = reuse[key].alignment
     wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 180.0) % 360.0)
     reuse[key] = PairResult(names[1], names[2], wrong, Verification(0.99, Counts(5000, 10), True))
@@ -225,7 +225,7 @@ def test_an_injected_inconsistent_pair_is_rejected_named_and_the_team_still_plac
     reuse = {}
     good = merge_tree(inputs, params, reuse=reuse)
     assert good.accepted and good.assembly is not None and not good.assembly.rejected
-    key = _pair_key(inputs[1], inputs[3], params)
+    key = pair_key(inputs[1], inputs[3], params)
     al = reuse[key].alignment
     wrong = dataclasses.replace(al, theta_deg=(al.theta_deg + 150.0) % 360.0)
     reuse[key] = PairResult(names[1], names[3], wrong, Verification(0.99, Counts(5000, 10), True))

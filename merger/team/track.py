@@ -8,7 +8,10 @@ passes, and its ν has not fallen by more than ``research_drop`` below the ν of
 it is the pair's answer. A global search runs instead (the first merge of a pair is always the global
 search's answer) when
 
-(a) the local answer fails verification, or its evidence falls by more than ``research_drop``;
+(a) the local answer fails verification, or its evidence falls by more than ``research_drop``, or it lies
+    more than SAME_HYPOTHESIS_DEG / _M from the track's *anchor* (where the tracked answer was found: a
+    global search's placement, or the team's): ±3 cells a version, the local optimum can walk along a
+    bare hall's flat ridge metres away, every step verifying (generated floor plan 28: 0.53 then 0.70 m);
 (b) either map's region of interest changed by more than ``research_change`` (the fraction of its known
     cells whose state changed) since the pair's last global search;
 (c) the pair was last searched globally ``research_period_s`` or more ago (the staleness bound);

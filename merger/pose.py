@@ -36,7 +36,7 @@ class Pose:
     def inverse(self) -> Pose:
         """The reference frame's pose in the map's frame."""
         back = Pose(0.0, 0.0, -self.yaw_deg).apply([-self.x, -self.y])
-        return Pose(float(back[0]), float(back[1]), (-self.yaw_deg) % 360.0)
+        return Pose(float(back[0]), float(back[1]), wrap_yaw(-self.yaw_deg))
 
     def to_dict(self) -> dict:
         return {"x": self.x, "y": self.y, "yaw_deg": self.yaw_deg}
@@ -45,8 +45,14 @@ class Pose:
 IDENTITY = Pose(0.0, 0.0, 0.0)
 
 
+def wrap_yaw(deg: float) -> float:
+    """``deg`` in [0, 360): ``x % 360.0`` alone rounds to 360.0 for a tiny negative x (−1e-20 % 360 == 360.0)."""
+    w = float(deg) % 360.0
+    return 0.0 if w >= 360.0 else w
+
+
 def pose_of_placement(theta_deg: float, t, c_first, c_map) -> Pose:
     """The pose of a map's frame in the first map's frame from its placement (θ, t) about the centers
     ``c_first`` (the first map's) and ``c_map`` (its own): x_0 = c_0 + t + R(θ)(x − c)."""
     rc = Pose(0.0, 0.0, theta_deg).apply(c_map)
-    return Pose(float(c_first[0] + t[0] - rc[0]), float(c_first[1] + t[1] - rc[1]), float(theta_deg) % 360.0)
+    return Pose(float(c_first[0] + t[0] - rc[0]), float(c_first[1] + t[1] - rc[1]), wrap_yaw(theta_deg))

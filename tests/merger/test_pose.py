@@ -4,7 +4,6 @@ placement (θ, t about the centers) maps every point exactly as the placement do
 import math
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -60,9 +59,8 @@ def test_the_first_maps_pose_is_the_identity_and_yaw_wraps():
     assert Pose(1.0, 2.0, 30.0).to_dict() == {"x": 1.0, "y": 2.0, "yaw_deg": 30.0}
 
 
-@pytest.mark.xfail(strict=True, reason="found by this test: (-yaw) % 360.0 rounds to 360.0 for a yaw below about "
-                   "1e-14 degrees, outside the documented [0, 360); merger/pose.py is to wrap it (strict: the "
-                   "fix makes this test pass and the marker must go)")
 def test_yaw_stays_below_360_for_a_tiny_angle():
-    assert Pose(0.0, 0.0, 1e-20).inverse().yaw_deg < 360.0
-    assert pose_of_placement(-1e-20, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)).yaw_deg < 360.0
+    """(−yaw) % 360.0 rounds to 360.0 for a yaw below about 1e-14°, outside the documented [0, 360)."""
+    assert Pose(0.0, 0.0, 1e-20).inverse().yaw_deg == 0.0
+    assert pose_of_placement(-1e-20, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)).yaw_deg == 0.0
+    assert Pose(0.0, 0.0, 30.0).inverse().yaw_deg == 330.0

@@ -114,11 +114,13 @@ def check_output_folder(path: Path, option: str) -> Path:
     return path
 
 
-def check_stem(path: Path, option: str) -> Path:
-    """An output stem (``out/merged``): a file name, not ``''``, ``.`` or an existing folder."""
-    if path.name in ("", ".", "..") or str(path).endswith("/") or path.is_dir():
+def check_stem(given: str | Path, option: str) -> Path:
+    """An output stem (``out/merged``): a file name, not ``''``, ``.``, a folder's name ending in "/" or an
+    existing folder. ``given`` as typed (a ``Path`` drops a trailing "/": ``Path("out/")`` is ``out``)."""
+    path = Path(given)
+    if path.name in ("", ".", "..") or str(given).endswith(("/", "\\")) or path.is_dir():
         raise UsageError(f"{option}: expected an output file stem such as out/merged (writes out/merged.yaml, "
-                         f".pgm and _overlay.png), got {str(path)!r}" + (" (a folder)" if path.is_dir() else ""))
+                         f".pgm and _overlay.png), got {str(given)!r}" + (" (a folder)" if path.is_dir() else ""))
     return path
 
 

@@ -155,7 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(results in the first one's frame; maps named r1, r2, ...)")
     m.add_argument("--center", action="append", required=True, metavar="X,Y",
                    help="common center X,Y: once for all maps, or once per map in order")
-    m.add_argument("-o", "--output", type=Path, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
+    m.add_argument("-o", "--output", type=str, required=True, help="output stem: writes OUT.yaml/.pgm and OUT_overlay.png")
     m.add_argument("--force", action="store_true", help="write the best hypothesis even if verification rejects it")
     m.add_argument("--algorithm", choices=ALGORITHMS, default=DEFAULT_ALGORITHM,
                    help="thesis (default): the search about the common center, verified; features: ROS m-explore "

@@ -71,8 +71,8 @@ def test_roi_in_cells_is_the_library_rule_named_roi(roi, res):
 def test_output_stems_and_folders(tmp_path):
     (tmp_path / "file").write_text("")
     assert check_stem(tmp_path / "merged", "-o") == tmp_path / "merged"
-    # (Path("out/") is Path("out"): argparse's Path drops the slash, so check_stem's endswith("/") never sees it)
-    for bad in (Path("."), Path(".."), tmp_path):
+    # as typed: "out/" names a folder (a Path would drop the slash, and the map would be written as out.yaml)
+    for bad in (Path("."), Path(".."), tmp_path, "out/", f"{tmp_path}/new/"):
         assert refused(check_stem, bad, "-o").startswith("-o: expected an output file stem such as out/merged")
     assert refused(check_stem, tmp_path, "-o").endswith("(a folder)")
     assert check_output_folder(tmp_path / "new", "-o") == tmp_path / "new"

@@ -20,7 +20,7 @@ from .frames import Warps, compose, merged_on_frame0
 from .memo import Memo
 from .orders import align_order, merge_team, order_result, refine_chosen
 from .params import MapInput, MergeParams, TeamMergeResult
-from .track import Tracker, agree, decide
+from .track import Tracker, decide
 
 TEAM = "team"
 
@@ -69,7 +69,7 @@ def merge_team_tracked(maps: list[MapInput], params: MergeParams, tracker: Track
         local = local_cycle(maps, params, tr.tracked, memo)
         local_ok = local.accepted and mean_nu(local) >= tr.nu_ref - tracker.drop
         # as for a pair (merger.team.tree): a local answer that walked away from where the hypothesis was found
-        local_ok = local_ok and (tr.anchor is None or agree(team_placement(local), tr.anchor))
+        local_ok = local_ok and tr.near_anchor(team_placement(local))
         if local_ok and not tracker.due(tr, maps, params.roi_m, now):
             tr.locals += 1
             tr.tracked, tr.placement = local, team_placement(local)

@@ -113,6 +113,11 @@ class Track:
     switches: int = 0
     jumps: list = field(default_factory=list)  # (Δθ°, Δt m) between consecutive accepted answers
 
+    def near_anchor(self, placement) -> bool:
+        """Whether a local answer's placement is still the hypothesis the track was found at (no anchor:
+        nothing to hold it to)."""
+        return self.anchor is None or agree(placement, self.anchor)
+
 
 @dataclass
 class Tracker:
@@ -160,12 +165,8 @@ class Tracker:
             return tr.recheck
         if now - tr.global_s >= self.period_s - 1e-9:
             return f"last global search {now - tr.global_s:.1f} s ago (research_period_s {self.period_s:g})"
-        return self.changed(tr.rois, maps, roi_m, change)
-
-    def changed(self, rois: dict, maps, roi_m: float, change: float) -> str:
-        """Which of ``maps``' ROI changed by more than ``change`` since ``rois`` (name → states), or ""."""
         for m in maps:
-            c = roi_change(rois.get(m.name), self.roi(m, roi_m))
+            c = roi_change(tr.rois.get(m.name), self.roi(m, roi_m))
             if c > change:
                 return f"{m.name}'s ROI changed by {c:.1%} (more than {change:g})"
         return ""

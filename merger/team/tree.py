@@ -18,7 +18,7 @@ assembled:
    :func:`merger.team.posegraph.adjust`): a chain's small per-pair errors do not add up along the tree;
 4. every tree edge is verified again on map 0's frame with the composed placements (``checks``, the
    evidence) and must pass there. The other pairs are not required to reach ν_min, and are not verified
-   again: their evidence is their consistency in the assembly (step 2). Two robots on opposite sides of a
+   again: their evidence is their consistency in the assembly (step 1). Two robots on opposite sides of a
    large circle see opposite faces of the same objects and reach ν ≈ ν_min at best even when placed
    exactly: the thesis's rule (every pair ≥ ν_min) rejected every 6-robot cycle of the hall after 15 s,
    all of them correct. Checking all N(N−1)/2 pairs for the record only was 11% of the 16-robot hall's
@@ -49,7 +49,7 @@ from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
-from .track import Tracker, agree, decide
+from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
 
@@ -194,7 +194,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             local_ok = local.verification.passed and local.verification.nu >= tr.nu_ref - tracker.drop
             # a local answer that has walked away from where its hypothesis was found (along a corridor's
             # flat ridge, ±3 cells a version) is another hypothesis: the global search decides
-            local_ok = local_ok and (tr.anchor is None or agree(_placement(local), tr.anchor))
+            local_ok = local_ok and tr.near_anchor(_placement(local))
             if local_ok and not tracker.due(tr, sub, params.roi_m, now):
                 tr.locals += 1
                 tr.tracked, tr.placement = local, _placement(local)

@@ -7,15 +7,41 @@ center, verified — :mod:`merger.team`), ``features`` (ROS m-explore map_merge'
 the settings → a placement about the centers, its evidence, or a refusal with a reason
 (:class:`merger.algorithms.base.PairAnswer`) — and :func:`merge` merges a team with it
 (a :class:`merger.team.orders.TeamMergeResult`, map 0's frame).
+
+They are one table, :data:`ALGORITHMS_BY_NAME` (an :class:`Algorithm` per name: its pair function and how a
+team is merged with it); the ``algorithm`` setting's allowed values are its keys (:data:`ALGORITHMS`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 from ..team.orders import MapInput, MergeParams, TeamMergeResult
 from .base import PairAnswer
 
-ALGORITHMS = ("thesis", "features", "hough")
 DEFAULT = "thesis"
+
+
+@dataclass(frozen=True)
+class Algorithm:
+    """A merging method (the ``algorithm`` setting).
+
+    load : returns its pair function ``align(ref, mov, params) -> PairAnswer`` (imported when first asked:
+        the pairwise methods need OpenCV's feature pipeline or the Hough spectrum).
+    pairwise : a team is merged from its pair answers (:func:`merger.algorithms.team.merge_pairwise`; no
+        center used); False: the method merges a team itself (``thesis``: :func:`merger.team.orders.merge_team`,
+        every order verified) and its online merger is :class:`merger.team.online.TeamMerger`.
+    """
+
+    name: str
+    load: Callable[[], Callable]
+    pairwise: bool = True
+
+    @property
+    def align(self) -> Callable:
+        """``align(ref, mov, params) -> PairAnswer``."""
+        return self.load()
 
 
 def _thesis_pair(ref: MapInput, mov: MapInput, params: MergeParams) -> PairAnswer:
@@ -28,17 +54,37 @@ def _thesis_pair(ref: MapInput, mov: MapInput, params: MergeParams) -> PairAnswe
     return PairAnswer(res.accepted, th, top.translation(mov.name), top.nu_sum, ev, res.reason)
 
 
+def _features():
+    from .features import align
+
+    return align
+
+
+def _hough():
+    from .hough import align
+
+    return align
+
+
+ALGORITHMS_BY_NAME: dict[str, Algorithm] = {a.name: a for a in (
+    Algorithm("thesis", lambda: _thesis_pair, pairwise=False),
+    Algorithm("features", _features),
+    Algorithm("hough", _hough),
+)}
+ALGORITHMS = tuple(ALGORITHMS_BY_NAME)  # the algorithm setting's allowed values
+
+
+def algorithm_of(name: str) -> Algorithm:
+    """The :class:`Algorithm` named ``name`` (ValueError naming the choices when there is none)."""
+    try:
+        return ALGORITHMS_BY_NAME[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"merger algorithm must be one of {', '.join(ALGORITHMS)}, got {name!r}") from None
+
+
 def pair_function(algorithm: str):
     """``align(ref, mov, params) -> PairAnswer`` of an algorithm."""
-    if algorithm == "thesis":
-        return _thesis_pair
-    if algorithm == "features":
-        from .features import align
-    elif algorithm == "hough":
-        from .hough import align
-    else:
-        raise ValueError(f"merger algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
-    return align
+    return algorithm_of(algorithm).align
 
 
 def align_pair(algorithm: str, ref: MapInput, mov: MapInput, params: MergeParams = MergeParams()) -> PairAnswer:  # noqa: B008 (frozen)
@@ -50,13 +96,14 @@ def merge(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParam
           **thesis_kwargs) -> TeamMergeResult:
     """Merge a team with ``algorithm`` (``thesis``: :func:`merger.team.orders.merge_team` with
     ``thesis_kwargs``; the others: :func:`merger.algorithms.team.merge_pairwise`)."""
-    if algorithm == "thesis":
+    alg = algorithm_of(algorithm)
+    if not alg.pairwise:
         from ..team.orders import merge_team
 
         return merge_team(maps, params, **thesis_kwargs)
     from .team import merge_pairwise
 
-    return merge_pairwise(pair_function(algorithm), maps, params, cache=cache, name=algorithm)
+    return merge_pairwise(alg.align, maps, params, cache=cache, name=alg.name)
 
 
 def merge_every_map(algorithm: str, maps: list[MapInput], params: MergeParams = MergeParams()) -> TeamMergeResult:  # noqa: B008 (frozen)
@@ -64,8 +111,8 @@ def merge_every_map(algorithm: str, maps: list[MapInput], params: MergeParams = 
     placed (a pairwise algorithm may place a part of the team; the online bench keeps that partial merge)."""
     from dataclasses import replace
 
-    res = merge(algorithm, maps, params, orders=[(0, 1)] if len(maps) == 2 else None) if algorithm == "thesis" \
-        else merge(algorithm, maps, params)
+    res = merge(algorithm, maps, params, orders=[(0, 1)] if len(maps) == 2 else None) \
+        if not algorithm_of(algorithm).pairwise else merge(algorithm, maps, params)
     if res.chosen is None or len(res.chosen.theta_deg) == len(maps):
         return res
     missing = [m.name for m in maps if m.name not in res.chosen.theta_deg]

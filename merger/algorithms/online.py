@@ -9,7 +9,9 @@ from dataclasses import dataclass, field
 
 from ..team.online import TeamMerger
 from ..team.orders import TeamMergeResult
-from . import ALGORITHMS, merge
+from . import ALGORITHMS_BY_NAME, merge
+
+PAIRWISE = tuple(n for n, a in ALGORITHMS_BY_NAME.items() if a.pairwise)  # the algorithms an AlgorithmMerger runs
 
 
 @dataclass
@@ -19,8 +21,8 @@ class AlgorithmMerger(TeamMerger):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.algorithm not in ALGORITHMS or self.algorithm == "thesis":
-            raise ValueError(f"AlgorithmMerger: algorithm must be one of {', '.join(ALGORITHMS[1:])}, "
+        if self.algorithm not in PAIRWISE:
+            raise ValueError(f"AlgorithmMerger: algorithm must be one of {', '.join(PAIRWISE)}, "
                              f"got {self.algorithm!r} (thesis: TeamMerger)")
 
     def cycle(self, now: float | None = None) -> TeamMergeResult:
@@ -38,7 +40,8 @@ class AlgorithmMerger(TeamMerger):
 
 
 def make_merger(algorithm: str, *args, **kwargs) -> TeamMerger:
-    """The online merger of ``algorithm``: :class:`TeamMerger` for ``thesis``, else :class:`AlgorithmMerger`."""
-    if algorithm == "thesis":
+    """The online merger of ``algorithm``: :class:`TeamMerger` for ``thesis`` (a method that merges a team
+    itself), else :class:`AlgorithmMerger`."""
+    if algorithm in ALGORITHMS_BY_NAME and not ALGORITHMS_BY_NAME[algorithm].pairwise:
         return TeamMerger(*args, **kwargs)
     return AlgorithmMerger(*args, algorithm=algorithm, **kwargs)

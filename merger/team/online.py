@@ -12,11 +12,14 @@ only when it verifies on the robot's own maps and scores higher there than the a
 
 Two strategies: ``orders`` (the thesis: every merge order, :func:`merger.team.orders.merge_team`) and ``tree``
 (pairwise alignments kept per map version, the team assembled along a maximum spanning tree of the
-verified pairs, :func:`merger.team.tree.merge_tree`).
+verified pairs, :func:`merger.team.tree.merge_tree`); ``auto`` chooses one by the team's size. They are one
+table, :data:`STRATEGIES_BY_NAME` (a :class:`Strategy` per name with its cycle): the ``strategy`` setting's
+allowed values are its keys (:data:`STRATEGIES`), and a merger looks its strategy up once, when it is made.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,17 +33,67 @@ from .shared import Adoption, HypothesisMessage, adopt, hypothesis_of
 from .track import Tracker
 from .tree import merge_tree
 
-STRATEGIES = ("auto", "orders", "tree")
 AUTO_ORDERS_MAX_TEAM = 3  # "auto": the thesis's merge orders for teams of up to this many robots, the tree beyond
 
 
+@dataclass(frozen=True)
+class Strategy:
+    """A team strategy (the ``strategy`` setting).
+
+    cycle : one merge cycle, ``cycle(merger, inputs, clock, reuse) -> TeamMergeResult`` (the
+        :class:`TeamMerger`, its held maps, the cycle's time, its reuse dict or None); None for a choice.
+    pairs : its searches are pair searches of raw maps (the tree's edges), not the steps of merge orders
+        (the recorder names them so).
+    choose : a choice between strategies (``auto``): the name of the one a team of n robots runs.
+    """
+
+    name: str
+    cycle: Callable | None = None
+    pairs: bool = False
+    choose: Callable[[int], str] | None = None
+
+    def resolve(self, team_size: int) -> Strategy:
+        """The strategy a team of ``team_size`` robots runs: itself, or the one it chooses."""
+        return self if self.choose is None else STRATEGIES_BY_NAME[self.choose(team_size)]
+
+
+def _orders_cycle(tm: TeamMerger, inputs: list[MapInput], clock: float, reuse: dict | None) -> TeamMergeResult:
+    """The thesis's merge orders; with a tracker, its held hypothesis re-verified first (:mod:`.follow`)."""
+    if tm.tracker is not None:
+        return merge_team_tracked(inputs, tm.params, tm.tracker, clock, reuse=reuse, memo=tm.memo)
+    return merge_team(inputs, tm.params, reuse=reuse, memo=tm.memo)
+
+
+def _tree_cycle(tm: TeamMerger, inputs: list[MapInput], clock: float, reuse: dict | None) -> TeamMergeResult:
+    """The tree of verified pairs (:mod:`.tree`), with the tracker if any."""
+    return merge_tree(inputs, tm.params, reuse=reuse, memo=tm.memo, tracker=tm.tracker, now=clock)
+
+
+def _auto(team_size: int) -> str:
+    """``auto``: the thesis's ``orders`` for up to three robots (the thesis's case: three orders of two
+    searches) and the ``tree`` beyond, where the orders grow as N(N−1)/2 orders of N−1 searches per cycle."""
+    return "orders" if team_size <= AUTO_ORDERS_MAX_TEAM else "tree"
+
+
+STRATEGIES_BY_NAME: dict[str, Strategy] = {s.name: s for s in (
+    Strategy("auto", choose=_auto),
+    Strategy("orders", _orders_cycle),
+    Strategy("tree", _tree_cycle, pairs=True),
+)}
+STRATEGIES = tuple(STRATEGIES_BY_NAME)  # the strategy setting's allowed values
+
+
+def strategy_of(strategy: str, team_size: int) -> Strategy:
+    """The :class:`Strategy` a team of ``team_size`` robots runs under the setting ``strategy``."""
+    if strategy not in STRATEGIES_BY_NAME:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    return STRATEGIES_BY_NAME[strategy].resolve(team_size)
+
+
 def resolve_strategy(strategy: str, team_size: int) -> str:
-    """The strategy a team of ``team_size`` robots runs: ``auto`` is the thesis's ``orders`` for up to
-    three robots (the thesis's case: three orders of two searches) and the ``tree`` beyond, where the
-    orders grow as N(N−1)/2 orders of N−1 searches per cycle."""
-    if strategy == "auto":
-        return "orders" if team_size <= AUTO_ORDERS_MAX_TEAM else "tree"
-    return strategy
+    """The name of the strategy a team of ``team_size`` robots runs (:func:`strategy_of`): ``auto`` is the
+    thesis's ``orders`` for up to three robots and the ``tree`` beyond."""
+    return strategy_of(strategy, team_size).name
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +137,7 @@ class TeamMerger:
     _pairs: dict = field(default_factory=dict, repr=False)
     memo: Memo | None = field(default=None, repr=False)  # results shared with teammates' mergers (merger.team.memo)
     tracker: Tracker | None = field(default=None, repr=False)  # research "on_change": merger.team.track
+    _strategy: Strategy | None = field(default=None, init=False, repr=False)  # the strategy's object, looked up once
 
     def __post_init__(self) -> None:
         self.team = tuple(self.team)
@@ -91,9 +145,8 @@ class TeamMerger:
             raise ValueError(f"{self.self_name!r} is not in the team {self.team}")
         if len(set(self.team)) != len(self.team):
             raise ValueError(f"team names must be unique: {self.team}")
-        if self.strategy not in STRATEGIES:
-            raise ValueError(f"strategy must be one of {STRATEGIES}, got {self.strategy!r}")
-        self.strategy = resolve_strategy(self.strategy, len(self.team))
+        self._strategy = strategy_of(self.strategy, len(self.team))
+        self.strategy = self._strategy.name
         if self.tracker is None and self.params.research == "on_change":
             self.tracker = Tracker.from_params(self.params)
 
@@ -123,13 +176,7 @@ class TeamMerger:
             raise RuntimeError(f"{self.self_name}: not enough maps to merge ({sorted(self.maps)})")
         clock = float(self.cycles) if now is None else float(now)  # without a clock: a second per cycle
         reuse = self._pairs if self.reuse else None
-        if self.strategy == "tree":
-            result = merge_tree(self.inputs(), self.params, reuse=reuse, memo=self.memo, tracker=self.tracker,
-                                now=clock)
-        elif self.tracker is not None:
-            result = merge_team_tracked(self.inputs(), self.params, self.tracker, clock, reuse=reuse, memo=self.memo)
-        else:
-            result = merge_team(self.inputs(), self.params, reuse=reuse, memo=self.memo)
+        result = self._strategy.cycle(self, self.inputs(), clock, reuse)
         self.cycles += 1
         if result.accepted:
             self.current = result

@@ -145,6 +145,23 @@ def test_registry_and_online_merger(office):
         merge("orb", [ref, mov])
 
 
+def test_the_algorithms_are_one_table_of_objects():
+    """Issue 45: an algorithm per name (its pair function, whether it merges pair by pair), one table."""
+    from merger.algorithms import ALGORITHMS_BY_NAME, algorithm_of, pair_function
+    from merger.algorithms.features import align as features_align
+    from merger.algorithms.hough import align as hough_align
+
+    assert ALGORITHMS == tuple(ALGORITHMS_BY_NAME)
+    assert {n: a.pairwise for n, a in ALGORITHMS_BY_NAME.items()} == {"thesis": False, "features": True,
+                                                                       "hough": True}
+    assert algorithm_of("features").align is features_align is pair_function("features")
+    assert algorithm_of("hough").align is hough_align and algorithm_of("thesis").name == "thesis"
+    with pytest.raises(ValueError, match="merger algorithm must be one of thesis, features, hough, got 'orb'"):
+        algorithm_of("orb")
+    with pytest.raises(ValueError, match="AlgorithmMerger: algorithm must be one of features, hough, got 'thesis'"):
+        AlgorithmMerger("a", ("a", "b"), algorithm="thesis")
+
+
 def test_merger_merge_algorithm_option(office, tmp_path, capsys):
     from merger.cli import main
     from merger.io.mapio import map_files, write_files

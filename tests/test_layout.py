@@ -26,12 +26,27 @@ def module_files(root: Path = REPO, packages=PACKAGES) -> dict[str, Path]:
     return out
 
 
-def imported_names(module: str, path: Path) -> list[tuple[str, ...]]:
+def _type_checking_only(tree: ast.AST) -> set[int]:
+    """The ids of the statements under ``if TYPE_CHECKING:`` (imported for annotations, never at run time)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and (getattr(node.test, "id", None) == "TYPE_CHECKING"
+                                         or getattr(node.test, "attr", None) == "TYPE_CHECKING"):
+            out |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
+    return out
+
+
+def imported_names(module: str, path: Path, type_checking: bool = True) -> list[tuple[str, ...]]:
     """Per import statement of ``path``, the module names it may name (absolute; ours and others): for
-    ``from pkg import name``, ``pkg.name`` (if it is a module) and ``pkg``."""
+    ``from pkg import name``, ``pkg.name`` (if it is a module) and ``pkg``. ``type_checking`` false: without
+    the imports under ``if TYPE_CHECKING:`` (the run-time imports only)."""
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     names = []
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    tree = ast.parse(path.read_text(), str(path))
+    skip = set() if type_checking else _type_checking_only(tree)
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
         if isinstance(node, ast.Import):
             names += [(a.name,) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -45,12 +60,12 @@ def imported_names(module: str, path: Path) -> list[tuple[str, ...]]:
     return names
 
 
-def import_graph(files: dict[str, Path] | None = None) -> dict[str, set[str]]:
+def import_graph(files: dict[str, Path] | None = None, type_checking: bool = True) -> dict[str, set[str]]:
     files = module_files() if files is None else files
     graph = {}
     for mod, path in files.items():
         deps = set()
-        for candidates in imported_names(mod, path):
+        for candidates in imported_names(mod, path, type_checking):
             name = next((c for c in candidates if c in files), candidates[-1])
             while name not in files and "." in name:
                 name = name.rpartition(".")[0]
@@ -123,6 +138,60 @@ def test_the_layering():
         clis = {"circsim.cli", "circsim.experiments.cli"} | {m for m in files if m.split(".")[:2] == ["merger", "cli"]}
         if mod not in clis:
             assert not clis & import_graph({mod: path, **{c: files[c] for c in clis}})[mod], mod
+
+
+TEAM = "merger.team"
+
+
+def team_layers(doc: Path = REPO / "docs" / "design" / "layout.md") -> dict[str, int]:
+    """merger/team/'s layers as docs/design/layout.md lists them (the code block after ``<!-- team-layers -->``):
+    module (full name) -> layer, lowest 0."""
+    lines = doc.read_text().splitlines()
+    k = lines.index("<!-- team-layers -->")
+    assert lines[k + 1] == "```", "the layers' block follows its marker"
+    layers = {}
+    for line in lines[k + 2:lines.index("```", k + 2)]:
+        if line[:1].isdigit():  # "N  a, b, c   what they are" (a wrapped description starts with spaces)
+            number, _, rest = line.partition("  ")
+            for name in rest.strip().split("   ")[0].split(","):
+                layers[f"{TEAM}.{name.strip()}"] = int(number)
+    return layers
+
+
+def layering_faults(graph: dict[str, set[str]], layers: dict[str, int]) -> list[str]:
+    """Every import of a module of ``layers`` that names a module of the same or a higher layer."""
+    return [f"{m} (layer {layers[m]}) imports {d} (layer {layers[d]})"
+            for m in sorted(layers) for d in sorted(graph.get(m, ())) if d in layers and layers[d] >= layers[m]]
+
+
+def test_the_layer_reader_and_checker():
+    layers = team_layers()
+    assert layers[f"{TEAM}.defaults"] == 0 and layers[f"{TEAM}.params"] == 1 and layers[f"{TEAM}.online"] == 7
+    assert layering_faults({"a": {"b"}, "b": {"c"}, "c": set()}, {"a": 2, "b": 1, "c": 0}) == []
+    assert layering_faults({"a": {"b"}, "b": {"a"}}, {"a": 1, "b": 1}) == ["a (layer 1) imports b (layer 1)",
+                                                                           "b (layer 1) imports a (layer 1)"]
+    assert layering_faults({"c": {"a"}}, {"a": 1, "c": 0}) == ["c (layer 0) imports a (layer 1)"]
+
+
+def test_params_imports_no_module_that_reads_its_settings():
+    """Settings flow down (issue 45): track, verify and evidence read their defaults from merger.team.defaults
+    (as params does); params, at the bottom with it, imports none of them at run time."""
+    files = module_files()
+    graph = import_graph({m: p for m, p in files.items() if m.startswith(TEAM)}, type_checking=False)
+    assert graph[f"{TEAM}.params"] == {f"{TEAM}.defaults"}
+    for low in ("track", "verify", "evidence"):
+        assert f"{TEAM}.params" not in graph[f"{TEAM}.{low}"], low
+        assert f"{TEAM}.defaults" in graph[f"{TEAM}.{low}"], low
+
+
+def test_merger_team_imports_flow_down_its_documented_layers():
+    """A module of merger/team/ imports (at run time) only modules of lower layers (docs/design/layout.md);
+    every module of merger/team/ has its layer."""
+    files = {m: p for m, p in module_files().items() if m.startswith(TEAM + ".")}
+    layers = team_layers()
+    assert set(files) == set(layers), f"modules without a layer: {sorted(set(files) - set(layers))}; " \
+                                      f"layers without a module: {sorted(set(layers) - set(files))}"
+    assert not layering_faults(import_graph(files, type_checking=False), layers)
 
 
 def test_tests_do_not_import_benchmarks():

@@ -90,7 +90,8 @@ import rerun.blueprint as rrb
 
 from merger.io.overlay import PALETTE, colours_for
 from merger.limits import one_line
-from merger.team.online import resolve_strategy
+from merger.team.defaults import verification_rule
+from merger.team.online import strategy_of
 
 from ..events import MergeCycle, Observer, RobotTick
 from .entities import (
@@ -543,7 +544,7 @@ class RerunRecorder(Observer):
         omega = []
         for o in res.orders:
             for k, (moving, al) in enumerate(o.steps, 1):
-                if resolve_strategy(getattr(cfg, "strategy", "orders"), len(self.names)) == "tree":
+                if strategy_of(getattr(cfg, "strategy", "orders"), len(self.names)).pairs:
                     # the pair searches of the tree's edges
                     omega.append((f"{al.measure} tree edge {k}", al.score, None))
                     continue
@@ -551,7 +552,10 @@ class RerunRecorder(Observer):
                 omega.append((f"{al.measure} {moving}→{onto}", al.score, None))
         if omega:  # an adopted hypothesis (shared) has no searches of the robot's own
             self._series(f"{base}/omega", omega)
-        top, whole = res.top, cfg.verification == "whole_map"
+        # the thesis's rule alone plots "ν" against ν_min; the others "score" against score_min (as before the
+        # rules' table: "auto" and "contrast" plot ν too, under the name "score")
+        rule = verification_rule(cfg.verification)
+        top, whole = res.top, rule.nu and not rule.contrast
         self._series(f"{base}/nu", [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in top.checks.items()]
                      + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, GREY)])
         self._series(f"{base}/support", [(f"support {k}", v.support, None) for k, v in top.checks.items()]

@@ -20,7 +20,8 @@ from ..limits import MAX_ROI_M
 from ..measures import MEASURES
 from ..search import SEARCH_METHODS
 from ..settings import MAX_ROI_CELLS
-from ..team.params import RULES, VERIFICATIONS, MergeParams
+from ..team.defaults import VERIFICATIONS_BY_NAME
+from ..team.params import RULES, MergeParams
 
 XY_OPTIONS = ("--center", "--center-moving", "--real-center")
 _NEGATIVE_XY = re.compile(r"^-\s*(\d|\.\d|inf|nan)[^,]*,.*$", re.IGNORECASE)
@@ -79,7 +80,7 @@ OPTIONS = {"roi_m": ("--roi", "roi"), "measure": ("--measure", "measure"), "meth
            "tolerance_m": ("--tolerance", "tolerance"), "contrast_min": ("--contrast-min", "contrast_min"),
            "roi_min_support": ("--roi-min-support", "roi_min_support")}
 # --verification: every whole-map rule (roi_score, the thesis's cross-correlation rule, has no --score-min)
-CLI_VERIFICATIONS = tuple(v for v in VERIFICATIONS if v != "roi_score")
+CLI_VERIFICATIONS = tuple(v for v, rule in VERIFICATIONS_BY_NAME.items() if rule.whole_maps)
 
 
 def add_merge_options(p: argparse.ArgumentParser, *, orders: bool = True) -> None:

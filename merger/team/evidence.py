@@ -24,7 +24,8 @@ the placement stands above the same maps' other placements:
   best (contrast ≈ 1) and is refused, as the thesis's rule would; a correct alignment of noisy maps
   stands well above its rivals even when ω̃ is low.
 
-Everything is deterministic (fixed step sizes and orders) and pure (arrays in, numbers out).
+Everything is deterministic (fixed step sizes and orders) and pure (arrays in, numbers out). The defaults of
+``tolerance_m`` and ``contrast_min`` (``TOLERANCE_M``, ``CONTRAST_MIN``) are the settings' (:mod:`merger.team.defaults`).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import numpy as np
 
 from ..grid import OCCUPIED_S, UNKNOWN_S, OccupancyGrid
 from ..jit import njit
+from .defaults import CONTRAST_MIN, TOLERANCE_M  # noqa: F401 (the settings' defaults, read here; CONTRAST_MIN's old path)
 
 LOCAL_DEG = 5.0
 LOCAL_M = 0.5
@@ -44,7 +46,6 @@ RIVAL_SEP_DEG = 15.0  # rivals start this far from the placement and stay ≥ 10
 RIVAL_STEP_DEG = 2.0
 RIVAL_REFINED = 3
 STEPS = ((1.0, 2.0), (0.5, 1.0), (0.25, 0.5), (0.1, 0.25))  # (degrees, cells) of the pattern search
-TOLERANCE_M = 0.2
 REFINE_DEG = 5.0  # the refinement of an accepted placement (refine): within this angle ...
 REFINE_M = 1.0  # ... and this translation on each axis
 SCAN_DEG = (-2.0, -1.0, 0.0, 1.0, 2.0)  # its coarse scan: these angles × translations every SCAN_STEP_M
@@ -52,7 +53,6 @@ SCAN_STEP_M = 0.1
 SCAN_POINTS = 4096
 FIT_AGREE_DEG = 4.0  # the whole maps' best fit must lie this close to the placement's angle (see verify_contrast; chosen
 # leaving one Halmstad building out, with the accepted placement refined: docs/merging-real-maps.md)
-CONTRAST_MIN = 1.5  # real maps: search answers 1.4–5.5, placements 20–180° off them ≤ 0.56 (docs/merging-real-maps.md)
 
 
 @dataclass(frozen=True)

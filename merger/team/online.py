@@ -147,7 +147,7 @@ class TeamMerger:
             raise ValueError(f"team names must be unique: {self.team}")
         self._strategy = strategy_of(self.strategy, len(self.team))
         self.strategy = self._strategy.name
-        if self.tracker is None and self.params.research == "on_change":
+        if self.tracker is None and self.params.research_mode.tracks:
             self.tracker = Tracker.from_params(self.params)
 
     def receive(self, msg: MapMessage) -> bool:

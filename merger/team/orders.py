@@ -141,7 +141,7 @@ def order_result(maps: list[MapInput], order: tuple[int, ...], params: MergePara
     """An order's placements (``place0``: (θ, t) onto map 0 per index) verified on the whole maps: every pair
     of maps by the strategy's rule (the thesis's, ν ≥ ν_min with the minimum support), refused when one
     fails, a step had too little evidence, or an ambiguous pair of the order was left unresolved."""
-    if params.verification != "roi_score":
+    if params.verification_rule.whole_maps:
         checks = {f"{maps[i].name}|{maps[j].name}": warps.check(i, place0[i], j, place0[j], params)
                   for i, j in pairwise(maps)}
     else:
@@ -210,7 +210,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             beyond_refusal(results[best], whole_map_guard(maps, orders[best], params, warps))
         chosen = None if ambiguity else results[best]
     place = aligned[best][0] if chosen is not None else None
-    if chosen is not None and params.combine_orders and params.verification != "roi_score":
+    if chosen is not None and params.combine_orders and params.verification_rule.whole_maps:
         combined = _combine(maps, results, [a[0] for a in aligned], accepted, best, orders[best], params, warps)
         if combined is not None:
             results[best], place = combined
@@ -225,13 +225,13 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
 
 
 def whole_map_guard(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, warps: Warps):
-    """With the contrast evidence (verification "auto" or "contrast"), the guard beyond the window of an
+    """With the contrast evidence (a verification rule that runs it: "auto", "contrast"), the guard beyond the window of an
     order's first step (a pair of raw maps) is settled on the whole maps: the alignment beyond the window and
     the one inside are each refined on the whole maps (:func:`merger.team.evidence.refine`, ±1 m), and the
     guard stands only when the one beyond fits better. On bent real maps the ROI's optimum lies a little
     beyond a 0.5 m window (0.6–1.15 m) while the whole maps fit best inside it (Halmstad: 11 of 108
     correct answers refused, docs/merging-real-maps.md). None for the thesis's rule (the guard as it is)."""
-    if params.verification not in ("auto", "contrast"):
+    if not params.verification_rule.contrast:
         return None
     i, j = order[0], order[1]
 
@@ -260,7 +260,7 @@ def refine_chosen(maps: list[MapInput], place: dict[int, Placement], warps: Warp
     cell-exact optimum is finer than the tolerant fit (on the simulator's maps the fit moved a placement
     14 cm, beyond the bench's 10 cm). The result carries the refined placement and the search's beside it
     (``search_theta_deg``, ``search_translation_m``); its checks stay those of the search's placement."""
-    if not params.refine_whole or params.verification == "roi_score" or len(place) < 2:
+    if not params.refine_whole or not params.verification_rule.whole_maps or len(place) < 2:
         return chosen, place
     names = {k: maps[k].name for k in place}
     todo = [k for k in place if k != 0 and any(v.contrast is not None and v.passed for pair, v in chosen.checks.items()

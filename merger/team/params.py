@@ -10,8 +10,13 @@ simulation bench (its scenarios' ``merger`` section is these settings plus the b
 One default per setting: MergeParams's field default (``merger.align`` reads the same constants). The
 search's own settings take theirs from :mod:`merger.settings` (``DEFAULT_ROI_M``,
 ``DEFAULT_WINDOW_M``, ``DEFAULT_MEASURE``, ``ROI_MIN_SUPPORT``), which
-:class:`~merger.search.RotationProblem` shares; the verification's from :mod:`.evidence` and the
-tracking's from :mod:`.track`.
+:class:`~merger.search.RotationProblem` shares; the verification's and the tracking's from
+:mod:`.defaults`, where :mod:`.evidence` and :mod:`.track` read them too (settings flow down: this module
+imports no module of merger/team/ but :mod:`.defaults` at run time; the result types it names in
+annotations are imported for type checking only). A setting whose value is a name has a table of objects
+there (``verification``: :data:`~merger.team.defaults.VERIFICATIONS_BY_NAME`, ``research``:
+:data:`~merger.team.defaults.RESEARCH_MODES_BY_NAME`): its allowed values are the table's keys, and
+:attr:`MergeParams.verification_rule` and :attr:`MergeParams.research_mode` are the chosen objects.
 
 One rule per setting: :data:`RULES`, a rule ``rule(value, key) -> value`` per MergeParams field holding
 its range and its words (``rule.expected``, ``rule.why``); a refusal is a
@@ -28,6 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,13 +53,26 @@ from ..settings import (
     check_roi,
     check_window,
 )
-from .ambiguity import PairAmbiguity
-from .consensus import AssemblyReport
-from .evidence import CONTRAST_MIN, TOLERANCE_M
-from .track import RESEARCH_CHANGE, RESEARCH_DEFAULT, RESEARCH_DROP, RESEARCH_MODES, RESEARCH_PERIOD_S
-from .verify import Verification
+from .defaults import (
+    CONTRAST_MIN,
+    RESEARCH_CHANGE,
+    RESEARCH_DEFAULT,
+    RESEARCH_DROP,
+    RESEARCH_MODES,
+    RESEARCH_PERIOD_S,
+    TOLERANCE_M,
+    VERIFICATIONS,
+    ResearchMode,
+    VerificationRule,
+    research_mode,
+    verification_rule,
+)
 
-VERIFICATIONS = ("auto", "whole_map", "roi_score", "contrast")
+if TYPE_CHECKING:  # the result types of higher layers, named in annotations only (docs/design/layout.md)
+    from .ambiguity import PairAmbiguity
+    from .consensus import AssemblyReport
+    from .verify import Verification
+
 AMBIGUITY_MARGIN = 0.05  # mean ν by which the chosen order must beat an accepted order that places a map elsewhere
 DEFAULT_METHOD = "fast"  # the search method of a merge and of merger.align: the branch and bound (exact)
 DEFAULT_REFINE = True  # merges and merger.align refine below the search grid (RotationProblem's own: False)
@@ -138,6 +157,16 @@ class MergeParams:
         if self.ambiguity_margin is not None:
             return float(self.ambiguity_margin)
         return AMBIGUITY_MARGIN if self.window_m > 0 else 0.0
+
+    @property
+    def verification_rule(self) -> VerificationRule:
+        """The verification rule in force: ``verification``'s object (:mod:`merger.team.defaults`)."""
+        return verification_rule(self.verification)
+
+    @property
+    def research_mode(self) -> ResearchMode:
+        """The research mode in force: ``research``'s object (:mod:`merger.team.defaults`)."""
+        return research_mode(self.research)
 
     def __post_init__(self) -> None:
         for name, rule in RULES.items():  # every setting's one rule, named by its field

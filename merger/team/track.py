@@ -44,12 +44,14 @@ import numpy as np
 from ..grid import UNKNOWN_S
 from ..lattice import extract_roi, roi_cells
 from ..search import angle_diff_deg
+from .defaults import (  # noqa: F401 (the settings' defaults, merger.team.defaults: read here, and their old paths)
+    RESEARCH_CHANGE,
+    RESEARCH_DEFAULT,
+    RESEARCH_DROP,
+    RESEARCH_MODES,
+    RESEARCH_PERIOD_S,
+)
 
-RESEARCH_MODES = ("on_change", "every_version")
-RESEARCH_DEFAULT = "on_change"
-RESEARCH_PERIOD_S = 10.0  # Cartographer's global_constraint_search_after_n_seconds
-RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed since the last global search
-RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
 UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched again at a quarter of research_change
 # (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
 SAME_HYPOTHESIS_DEG = 10.0  # two answers this close in angle and SAME_HYPOTHESIS_M in translation are one hypothesis

@@ -4,9 +4,9 @@ An alignment is accepted when ω̃ computed on the whole aligned maps is at leas
 support ``agr̃ + dis`` is at least ``min_support``: with too few cells the index means nothing, so a
 hypothesis is rejected in that case (favouring false negatives over false merges). For maps from
 independent runs (real maps), :func:`verify_contrast` asks instead how far the placement's whole-map
-fit stands above its rivals' (:mod:`merger.team.evidence`). :func:`check_pair` is the one dispatch on
-``MergeParams.verification`` for a pair of placed maps (every strategy and ``merger align`` call it);
-``auto``, the default, accepts a pair that either rule accepts (docs/merging-real-maps.md: the thesis's rule
+fit stands above its rivals' (:mod:`merger.team.evidence`). :func:`check_pair` is the one check of a pair of
+placed maps, by the rule ``MergeParams.verification`` names (:mod:`merger.team.defaults`: what each rule runs);
+every strategy and ``merger align`` call it. ``auto``, the default, accepts a pair that either rule accepts (docs/merging-real-maps.md: the thesis's rule
 where maps agree cell by cell, the contrast rule where they agree only within a few cells).
 """
 
@@ -19,6 +19,7 @@ import numpy as np
 from ..grid import OccupancyGrid
 from ..measures import Counts, similarity_index
 from ..transform import overlap
+from .defaults import verification_rule
 from .evidence import FIT_AGREE_DEG, REFINE_M, Contrast, contrast, refine
 
 
@@ -89,22 +90,24 @@ def verify_contrast(a: OccupancyGrid, b: OccupancyGrid, pivot, *, tolerance_m: f
 
 def check_pair(a: OccupancyGrid, b: OccupancyGrid, pivot, params, label: str = "") -> Verification:
     """Verification of b placed onto a (grids on one lattice; rotations about ``pivot``, where b's center
-    lands) by ``params.verification``: "whole_map" (ω̃ ≥ ν_min on the overlap), "contrast"
-    (:func:`verify_contrast`) or "auto": the thesis's rule, and when it refuses, the contrast rule (accepted
-    when either accepts; the reason of a refusal names both). ``params``: a :class:`MergeParams` (read by
-    attribute: ``verification``, ``nu_min``, ``min_support``, ``tolerance_m``, ``contrast_min``)."""
-    rule = params.verification
-    if rule not in ("whole_map", "contrast", "auto"):
-        raise ValueError(f"check_pair: verification {rule!r} is not a whole-map rule")
-    if rule != "contrast":
+    lands) by the rule ``params.verification`` names (:data:`merger.team.defaults.VERIFICATIONS_BY_NAME`):
+    the thesis's (``nu``: "whole_map", ω̃ ≥ ν_min on the overlap), the contrast rule (``contrast``:
+    "contrast", :func:`verify_contrast`) or both ("auto"): the thesis's rule, and when it refuses, the
+    contrast rule (accepted when either accepts; the reason of a refusal names both). ``params``: a
+    :class:`MergeParams` (read by attribute: ``verification``, ``nu_min``, ``min_support``, ``tolerance_m``,
+    ``contrast_min``)."""
+    rule = verification_rule(params.verification)
+    if not rule.whole_maps:
+        raise ValueError(f"check_pair: verification {rule.name!r} is not a whole-map rule")
+    if rule.nu:
         v = verify(*overlap(a, b), nu_min=params.nu_min, min_support=params.min_support, label=label)
         # the contrast's support (b's occupied cells on a's known cells) is at most agr̃ + dis: below
         # min_support here, the contrast rule refuses too, and is not computed
-        if rule == "whole_map" or v.passed or v.counts.support < params.min_support:
+        if not rule.contrast or v.passed or v.counts.support < params.min_support:
             return v
     k = verify_contrast(a, b, pivot, tolerance_m=params.tolerance_m, contrast_min=params.contrast_min,
                         min_support=params.min_support, label=label)
-    if rule == "contrast" or k.passed:
+    if not rule.nu or k.passed:
         return k
     return Verification(v.nu, v.counts, False, f"{v.reason}; {k.reason}", k.contrast)
 

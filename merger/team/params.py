@@ -10,13 +10,10 @@ simulation bench (its scenarios' ``merger`` section is these settings plus the b
 One default per setting: MergeParams's field default (``merger.align`` reads the same constants). The
 search's own settings take theirs from :mod:`merger.settings` (``DEFAULT_ROI_M``,
 ``DEFAULT_WINDOW_M``, ``DEFAULT_MEASURE``, ``ROI_MIN_SUPPORT``), which
-:class:`~merger.search.RotationProblem` shares; the verification's and the tracking's from
-:mod:`.defaults`, where :mod:`.evidence` and :mod:`.track` read them too (settings flow down: this module
-imports no module of merger/team/ but :mod:`.defaults` at run time; the result types it names in
-annotations are imported for type checking only). A setting whose value is a name has a table of objects
-there (``verification``: :data:`~merger.team.defaults.VERIFICATIONS_BY_NAME`, ``research``:
-:data:`~merger.team.defaults.RESEARCH_MODES_BY_NAME`): its allowed values are the table's keys, and
-:attr:`MergeParams.verification_rule` and :attr:`MergeParams.research_mode` are the chosen objects.
+:class:`~merger.search.RotationProblem` shares; the contrast rule's and the tracking's from :mod:`.defaults`,
+as :mod:`.evidence` and :mod:`.track` do (settings flow down: at run time this module imports nothing else of
+merger/team/). ``verification`` and ``research`` name entries of its tables: :attr:`MergeParams.verification_rule`
+and ``.research_mode`` are the objects.
 
 One rule per setting: :data:`RULES`, a rule ``rule(value, key) -> value`` per MergeParams field holding
 its range and its words (``rule.expected``, ``rule.why``); a refusal is a

@@ -116,3 +116,10 @@ def test_no_module_chooses_by_comparing_a_setting_name():
                 found[rel] = lines
     assert not found, f"choose by the setting's table (merger.team.defaults, online.STRATEGIES_BY_NAME, " \
                       f"merger.algorithms.ALGORITHMS_BY_NAME), not by its name: {found}"
+
+
+def test_the_two_agreement_angles_are_named_apart():
+    """Issue 45: evidence's 4° (the whole maps' best fit near the placement) and track's 10° (two answers are
+    one hypothesis) were both AGREE_DEG."""
+    assert evidence.FIT_AGREE_DEG == 4.0 and track.SAME_HYPOTHESIS_DEG == 10.0
+    assert not any(hasattr(m, "AGREE_DEG") for m in (defaults, evidence, params, track))

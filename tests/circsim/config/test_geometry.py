@@ -77,6 +77,9 @@ def test_offline_robots_paths_are_their_arcs_only():
     at = (1.5 * math.cos(math.radians(340)), 1.5 * math.sin(math.radians(340)))  # 10° from Nevers' start
     assert blocks_path(at, 0.1, (0.0, 0.0), off) == "robot Nevers's arc (±15° about its start)"
     assert blocks_path((0.0, 0.0), 0.3, (0.0, 0.0), off) is None  # at the center: far from every path
+    # 5° past the end of Nevers' arc (330° + 15°): the disc with the body (10.7° of the circle) reaches into it
+    past = (1.5 * math.cos(math.radians(350)), 1.5 * math.sin(math.radians(350)))
+    assert blocks_path(past, 0.1, (0.0, 0.0), off) == "robot Nevers's arc (±15° about its start)"
 
 
 def test_object_reach_holds_the_object():

@@ -44,7 +44,7 @@ class Recorder(Observer):
 
 @pytest.fixture(scope="module")
 def run():
-    sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides(["duration_s=3"])
+    sc = load_scenario(bundled_scenarios()["scene1"]).with_overrides(["duration_s=4"])  # first merges ~2 s
     rec = Recorder()
     sim = Simulation(sc, [rec])
     result = sim.run()
@@ -116,4 +116,4 @@ def test_merge_cycles_are_judged_against_the_start_poses(run):
         if c.correct:
             assert max(c.angle_error_deg.values()) <= tol + 1e-6
             assert max(c.translation_error_m.values()) <= sc.merger.correct_tol_m + 1e-6
-    assert any(c.first_correct for c in cycles)  # scene 1 merges in its first seconds
+    assert any(c.first_correct for c in cycles)  # scene 1 merges in its first seconds (README: by 5 s)

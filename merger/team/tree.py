@@ -62,7 +62,7 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     label = f"{maps[i].name}|{maps[j].name}"
 
     def check(al: Alignment) -> Verification:
-        if params.verification != "roi_score":
+        if params.verification_rule.whole_maps:
             return check_pair(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m),
                               shifted(maps[i].center, al.translation_m), params, label)
         ok = al.score >= params.score_min
@@ -257,7 +257,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         if ij not in linked:
             continue
         v = sw.check(a, sub_place[a], b, sub_place[b], params) \
-            if params.verification != "roi_score" else pairs[ij].verification
+            if params.verification_rule.whole_maps else pairs[ij].verification
         checks[f"{sub[a].name}|{sub[b].name}"] = v
         if pairs[ij].verification.passed and not v.passed:  # a tree edge must verify in the assembly
             failed.append(v.reason)

@@ -67,10 +67,7 @@ def test_the_defaults_live_here_and_keep_their_old_names():
         (0.2, 1.5, "on_change", 10.0, 0.1, 0.1)
 
 
-# the modules that may still compare a setting's name with a string, and how often: none. merger/team/tree.py's
-# two `params.verification != "roi_score"` are being rewritten with the tree (issue 43); their replacement is
-# `params.verification_rule.whole_maps`. Remove the entry when they are gone.
-PENDING = {"merger/team/tree.py": 2}
+PENDING: dict[str, int] = {}  # modules that may still compare a setting's name with a string, and how often: none
 SETTINGS = ("verification", "strategy", "algorithm", "research")
 
 

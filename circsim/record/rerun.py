@@ -149,6 +149,15 @@ def _within(fn, timeout_s: float) -> None:
         raise box["error"]
 
 
+
+def verdict_series(cfg, checks: dict) -> list[tuple[str, float, object]]:
+    """The plot of a cycle's checks: "ν" per pair against ν_min when the rule verifies on whole maps
+    (``whole_map``, ``contrast`` and ``auto``: the checks hold ω̃ of the whole maps), "score" against
+    score_min for ``roi_score`` (the checks hold the search's ROI score)."""
+    whole = verification_rule(cfg.verification).whole_maps
+    return [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in checks.items()] + \
+        [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, GREY)]
+
 class RerunRecorder(Observer):
     """Records a run with rerun: live viewer, ``.rrd`` file, or both.
 
@@ -552,12 +561,8 @@ class RerunRecorder(Observer):
                 omega.append((f"{al.measure} {moving}→{onto}", al.score, None))
         if omega:  # an adopted hypothesis (shared) has no searches of the robot's own
             self._series(f"{base}/omega", omega)
-        # the thesis's rule alone plots "ν" against ν_min; the others "score" against score_min (as before the
-        # rules' table: "auto" and "contrast" plot ν too, under the name "score")
-        rule = verification_rule(cfg.verification)
-        top, whole = res.top, rule.nu and not rule.contrast
-        self._series(f"{base}/nu", [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in top.checks.items()]
-                     + [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, GREY)])
+        top = res.top
+        self._series(f"{base}/nu", verdict_series(cfg, top.checks))
         self._series(f"{base}/support", [(f"support {k}", v.support, None) for k, v in top.checks.items()]
                      + [("min_support", cfg.min_support, GREY)])
         if res.accepted:

@@ -536,3 +536,19 @@ def test_rerun_executable_is_the_bundled_viewer():
     exe = Path(rerun_executable())
     assert exe.is_file() and os.access(exe, os.X_OK)
     assert "rerun_cli" in exe.parts
+
+
+@pytest.mark.parametrize("rule, whole", [("auto", True), ("whole_map", True), ("contrast", True),
+                                         ("roi_score", False)])
+def test_the_verdict_plot_names_nu_whenever_the_checks_hold_nu(rule, whole):
+    """The checks of ``auto`` (the default) and ``contrast`` hold ω̃ of the whole maps: plotted as ν against
+    ν_min (they were labelled "score" against score_min, a threshold those values are never compared with)."""
+    from types import SimpleNamespace
+
+    from circsim.record.rerun import verdict_series
+    from merger.team.verify import Verification
+
+    cfg = SimpleNamespace(verification=rule, nu_min=0.5, score_min=0.3)
+    rows = verdict_series(cfg, {"A|B": Verification(0.61, None, True)})
+    assert rows[0][:2] == (("ν A|B" if whole else "score A|B"), 0.61)
+    assert rows[-1][:2] == (("ν_min", 0.5) if whole else ("score_min", 0.3))

@@ -111,3 +111,20 @@ def test_refused_answers_still_give_the_best_hypothesis_tree():
     assert top.order == ("m0", "m1", "m2")  # m1 via the 0.9 edge, then m2 via m1's 0.8 edge, not 0.2
     assert top.theta_deg == pytest.approx({"m0": 0.0, "m1": 30.0, "m2": 60.0})
     assert top.reason == "m1: onto m0: x: 01; m2: onto m0: x: 02"
+
+
+@pytest.mark.xfail(strict=True, reason="bug: merge_pairwise caches a pair's answer when map i has a version, "
+                   "whatever map j's: a pair with an unversioned map j is kept under version None and served "
+                   "again for a different map j (merger/algorithms/team.py: the cache checks maps[i].version "
+                   "only)")
+def test_a_pair_with_an_unversioned_map_is_aligned_again():
+    def align(ref, mov, params):
+        return PairAnswer(True, float(mov.grid.states.sum() % 360), (0.0, 0.0), 1.0)
+
+    cache: dict = {}
+    other = OccupancyGrid(np.full((10, 10), 2, np.uint8), 0.05, (0.0, 0.0))  # another map j, no version
+    first = [MapInput("m0", G, (0.25, 0.25), version=1), MapInput("m1", G, (0.25, 0.25))]
+    second = [MapInput("m0", G, (0.25, 0.25), version=1), MapInput("m1", other, (0.25, 0.25))]
+    merge_pairwise(align, first, MergeParams(), cache=cache)
+    res = merge_pairwise(align, second, MergeParams(), cache=cache)
+    assert res.chosen.theta_deg["m1"] == float(other.states.sum() % 360)

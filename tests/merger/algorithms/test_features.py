@@ -34,12 +34,15 @@ def moved(g: OccupancyGrid, yaw_deg: float, p) -> OccupancyGrid:
     return OccupancyGrid(sample_nearest(g, xg).reshape(h, w), res, (float(lo[0]), float(lo[1])))
 
 
+YAW, P = 200.0, (-0.4, 0.6)  # the moving frame's pose in the map's frame
+
+
 @pytest.fixture(scope="module")
 def office():
     """The real office map and itself seen from a frame turned 200° and moved (−0.4, 0.6) m; both centers
     are the map's middle (the same world point): the truth is θ = 200°, t = 0."""
     g = load_map(str(REAL_MAP))
-    yaw, p = 200.0, np.array([-0.4, 0.6])
+    yaw, p = YAW, np.array(P)
     c_ref = (float(g.origin[0] + 0.5 * g.width * g.resolution), float(g.origin[1] + 0.5 * g.height * g.resolution))
     a = math.radians(yaw)
     d = np.asarray(c_ref) - p
@@ -119,3 +122,17 @@ def test_a_mirrored_map_has_no_rigid_placement_and_is_refused_with_its_figures(o
     assert ev["confidence"] == pytest.approx(ev["inliers"] / (8 + 0.3 * ev["matches"]))
     assert ev["confidence"] < CONFIDENCE_MIN
     assert f"{ev['inliers']} inliers / (8 + 0.3 × {ev['matches']} matches) < 1" in a.reason
+
+
+def test_the_placement_about_two_distinct_centers(office):
+    """The same fit read about centers that are not one point: x_ref = R(yaw) x_mov + p gives
+    t* = R(yaw)·c_mov + p − c_ref."""
+    ref, mov, yaw = office
+    c_ref, c_mov = (ref.center[0] + 1.0, ref.center[1] - 0.5), (0.2, -0.7)
+    a = align(MapInput("ref", ref.grid, c_ref), MapInput("mov", mov.grid, c_mov))
+    assert a.accepted, a.reason
+    r, p = math.radians(yaw), P
+    want = (math.cos(r) * c_mov[0] - math.sin(r) * c_mov[1] + p[0] - c_ref[0],
+            math.sin(r) * c_mov[0] + math.cos(r) * c_mov[1] + p[1] - c_ref[1])
+    assert abs(angle_diff_deg(a.theta_deg, yaw)) <= 1.0
+    assert math.dist(a.translation_m, want) <= 0.1

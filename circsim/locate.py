@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from merger.grid import OCCUPIED_S, OccupancyGrid
+from merger.pose import wrap_yaw
 
 from .score import Estimate, ScoreError, Truth
 
@@ -113,7 +114,7 @@ def _polish(sharp: np.ndarray, merged: OccupancyGrid, pts: np.ndarray, d: float,
         v = map_coordinates(sharp, [row.ravel(), col.ravel()], order=1, mode="constant").reshape(col.shape).mean(axis=1)
         k = int(np.argmax(v))
         if v[k] > best[0]:
-            best = (float(v[k]), (d + dd) % 360.0, (p[0] + shifts[k, 0, 0], p[1] + shifts[k, 0, 1]))
+            best = (float(v[k]), wrap_yaw(d + dd), (p[0] + shifts[k, 0, 0], p[1] + shifts[k, 0, 1]))
     return best[1], best[2]
 
 
@@ -122,7 +123,7 @@ def _compose_inv(a, b):
     ya, yb = math.radians(a[0]), math.radians(b[0])
     c, s = math.cos(ya), math.sin(ya)
     dx, dy = b[1] - a[1], b[2] - a[2]
-    return (math.degrees(yb - ya) % 360.0, c * dx + s * dy, -s * dx + c * dy)
+    return (wrap_yaw(math.degrees(yb - ya)), c * dx + s * dy, -s * dx + c * dy)
 
 
 def estimates_from_placements(t: float, placed: dict, where: str = "") -> list[Estimate]:

@@ -72,13 +72,10 @@ def test_each_robots_estimates_are_the_relative_poses_of_the_placements(poses, q
     for e in ests:
         assert set(e.placements) == set(placed) - {e.robot}
         for j, rel in e.placements.items():
-            assert 0.0 <= rel[0] <= 360.0  # [0, 360) but for tiny angles: the strict xfail below
+            assert 0.0 <= rel[0] < 360.0
             assert _apply(placed[e.robot], _apply(rel, q)) == pytest.approx(_apply(placed[j], q), abs=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="bug: locate._compose_inv wraps with math.degrees(yb - ya) % 360.0, which "
-                   "is 360.0 for a tiny negative difference (−1e-300 % 360.0 == 360.0); angles are reported in "
-                   "[0, 360) (DESIGN.md; merger.pose.wrap_yaw fixed the same for Pose)")
 def test_an_estimate_of_a_tiny_turn_stays_in_0_360():
     ests = estimates_from_placements(0.0, {"a": (1e-300, 0.0, 0.0), "b": (0.0, 0.0, 0.0)})
     assert ests[0].placements["b"][0] < 360.0

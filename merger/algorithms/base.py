@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ..pose import wrap_yaw
+
 
 @dataclass(frozen=True)
 class PairAnswer:
@@ -31,7 +33,7 @@ class PairAnswer:
         a = math.radians(-self.theta_deg)
         c, s = math.cos(a), math.sin(a)
         tx, ty = self.translation_m
-        return PairAnswer(self.accepted, (-self.theta_deg) % 360.0, (-(c * tx - s * ty), -(s * tx + c * ty)),
+        return PairAnswer(self.accepted, wrap_yaw(-self.theta_deg), (-(c * tx - s * ty), -(s * tx + c * ty)),
                           self.score, self.evidence, self.reason)
 
 
@@ -43,7 +45,7 @@ def center_form(affine, ref, mov) -> tuple[float, tuple[float, float]]:
     """(θ, t) about the centers of a 2×3 map of ``mov``'s cell indices (x = column, y = row, a cell's centre
     at its index) onto ``ref``'s: θ from its linear part, t = where it puts c_mov − c_ref."""
     a = affine
-    theta = math.degrees(math.atan2(a[1][0], a[0][0])) % 360.0
+    theta = wrap_yaw(math.degrees(math.atan2(a[1][0], a[0][0])))
     gm, gr = mov.grid, ref.grid
     px = ((mov.center[0] - gm.origin[0]) / gm.resolution - 0.5, (mov.center[1] - gm.origin[1]) / gm.resolution - 0.5)
     q = (a[0][0] * px[0] + a[0][1] * px[1] + a[0][2], a[1][0] * px[0] + a[1][1] * px[1] + a[1][2])

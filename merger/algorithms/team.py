@@ -52,10 +52,11 @@ def merge_pairwise(align, maps: list[MapInput], params: MergeParams, *, cache: d
     for i in range(n):
         for j in range(i + 1, n):
             key = (name, maps[i].name, maps[i].version, maps[j].name, maps[j].version)
-            a = cache.get(key) if cache is not None and maps[i].version is not None else None
+            keep = cache is not None and maps[i].version is not None and maps[j].version is not None
+            a = cache.get(key) if keep else None
             if a is None:
                 a = align(maps[i], maps[j], params)
-                if cache is not None and maps[i].version is not None:
+                if keep:
                     cache[key] = a
             answers[(i, j)], answers[(j, i)] = a, a.inverse()
     place, tree = _spanning(answers, lambda a: a.accepted)

@@ -35,7 +35,7 @@ def _place(ans: PairAnswer, x):
 def test_the_inverse_undoes_the_placement_at_every_point(theta, tx, ty, px, py):
     a = PairAnswer(True, theta, (tx, ty), 0.7, {"k": 1}, "why")
     b = a.inverse()
-    assert 0.0 <= b.theta_deg <= 360.0  # [0, 360) but for tiny angles: the strict xfail below
+    assert 0.0 <= b.theta_deg < 360.0
     assert np.allclose(_place(b, _place(a, (px, py))), (px, py), atol=1e-9)
     assert np.allclose(_place(a, _place(b, (px, py))), (px, py), atol=1e-9)
     assert (b.accepted, b.score, b.evidence, b.reason) == (True, 0.7, {"k": 1}, "why")
@@ -70,7 +70,7 @@ def test_center_form_reads_a_known_placement_off_the_affine_map_of_cell_indices(
     off = (np.asarray(c_ref) + t + R @ (np.asarray(o_mov) + 0.5 * res - np.asarray(c_mov)) - np.asarray(o_ref)) / res - 0.5
     affine = np.hstack([lin, off[:, None]])
     th, tt = center_form(affine, ref, mov)
-    assert abs(angle_diff_deg(th, theta)) < 1e-7 and 0.0 <= th <= 360.0  # tiny angles: the xfail below
+    assert abs(angle_diff_deg(th, theta)) < 1e-7 and 0.0 <= th < 360.0
     assert tt == pytest.approx(t, abs=1e-9)
 
 
@@ -83,15 +83,10 @@ def test_center_form_of_the_identity_between_one_map_is_no_placement():
     assert th == 0.0 and t == pytest.approx((0.15, 0.05), abs=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="bug: PairAnswer.inverse wraps with (-θ) % 360.0, which is 360.0 for a "
-                   "tiny positive θ (−1e-300 % 360.0 == 360.0); angles are reported in [0, 360) "
-                   "(DESIGN.md; merger.pose.wrap_yaw fixed the same for Pose)")
 def test_the_inverse_of_a_tiny_angle_stays_in_0_360():
     assert PairAnswer(True, 1e-300, (0.0, 0.0)).inverse().theta_deg < 360.0
 
 
-@pytest.mark.xfail(strict=True, reason="bug: center_form wraps atan2's angle with % 360.0, which is 360.0 for a "
-                   "tiny negative angle; angles are reported in [0, 360) (DESIGN.md)")
 def test_center_form_of_a_tiny_negative_turn_stays_in_0_360():
     m = _map("a", (0.0, 0.0), 0.05, (0.5, 0.5))
     th, _ = center_form(np.array([[1.0, 0.0, 0.0], [-1e-300, 1.0, 0.0]]), m, m)

@@ -113,10 +113,6 @@ def test_refused_answers_still_give_the_best_hypothesis_tree():
     assert top.reason == "m1: onto m0: x: 01; m2: onto m0: x: 02"
 
 
-@pytest.mark.xfail(strict=True, reason="bug: merge_pairwise caches a pair's answer when map i has a version, "
-                   "whatever map j's: a pair with an unversioned map j is kept under version None and served "
-                   "again for a different map j (merger/algorithms/team.py: the cache checks maps[i].version "
-                   "only)")
 def test_a_pair_with_an_unversioned_map_is_aligned_again():
     def align(ref, mov, params):
         return PairAnswer(True, float(mov.grid.states.sum() % 360), (0.0, 0.0), 1.0)

@@ -81,8 +81,8 @@ RESEARCH = """
   disagreed awaits a second one (a different answer replaces the tracked one only when two global searches
   find it and it verifies with a higher ν: hysteresis; each switch is an event in the run's log), or the
   team's assembly found the pair inconsistent. The first merge of a pair is always a global search's
-  answer. A pair that never verified is searched again when both its maps' ROIs changed by a quarter of
-  `research_change` (or either by `research_change`), or, when the held team placement already links its two maps, locally from that
+  answer. A pair that never verified is searched again when a map's ROI changed by a quarter of
+  `research_change`, or, when the held team placement already links its two maps, locally from that
   relative pose (globally at the staleness bound).
 - `every_version`: every map version is searched globally — the thesis's behaviour; `scene1`, `scene2`
   and their `-thesis` variants pin it.

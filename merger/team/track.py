@@ -19,12 +19,8 @@ search's answer) when
     the team's assembly refused a cycle that used the local answer (the tree: an inconsistent loop, a
     tree edge failing on map 0's frame): the pair's next version is searched globally.
 
-A pair without an accepted answer is searched again only on (c), or when *both* its maps' ROIs changed
-by a quarter of ``research_change`` since its last global search, or either by ``research_change``:
-failed candidates are not retried until their maps change (Swarm-SLAM, COVINS). Robots send their maps
-at their own phases, so a pair sees a new version of each map in every network period: retried at
-either, a refused pair was searched twice per period (16-robot hall: ~240 of its 120 pairs per 2 s,
-each 55 ms, the bench's wall); waiting for both halves that while the maps grow slowly (issue 43). A global answer that agrees with the tracked one
+A pair without an accepted answer is searched again only on (b) or (c): failed candidates are not
+retried until their maps change (Swarm-SLAM, COVINS). A global answer that agrees with the tracked one
 (within 10° and 0.2 m) replaces it; one that disagrees while the tracked answer still verifies becomes a
 *candidate* and replaces it only when the next global search finds it again and it verifies with a
 higher ν than the tracked answer on the same maps (hysteresis: m-explore's map_merge overwrites its
@@ -56,7 +52,7 @@ from .defaults import (  # noqa: F401 (the settings' defaults, merger.team.defau
     RESEARCH_PERIOD_S,
 )
 
-UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer: searched again when both maps changed this much
+UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched again at a quarter of research_change
 # (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
 SAME_HYPOTHESIS_DEG = 10.0  # two answers this close in angle and SAME_HYPOTHESIS_M in translation are one hypothesis
 SAME_HYPOTHESIS_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
@@ -163,8 +159,7 @@ class Tracker:
 
     def due(self, tr: Track, maps, roi_m: float, now: float) -> str:
         """Why a global search is due for ``tr`` over ``maps`` ("" when none is): staleness, change, candidate.
-        A track without an accepted answer is due when both maps changed by a quarter of ``change``
-        (UNTRACKED_CHANGE_FACTOR), or either by ``change``."""
+        A track without an accepted answer is due at a quarter of ``change`` (UNTRACKED_CHANGE_FACTOR)."""
         change = self.change if tr.tracked is not None else self.change * UNTRACKED_CHANGE_FACTOR
         if tr.candidate is not None:
             return "a disagreeing global answer awaits confirmation"
@@ -172,20 +167,10 @@ class Tracker:
             return tr.recheck
         if now - tr.global_s >= self.period_s - 1e-9:
             return f"last global search {now - tr.global_s:.1f} s ago (research_period_s {self.period_s:g})"
-        changes = [(m.name, roi_change(tr.rois.get(m.name), self.roi(m, roi_m))) for m in maps]
-        if tr.tracked is None:
-            # a refused pair waits until *both* its maps changed (one search per pair per network period, not
-            # one per new version of either map), or one of them by research_change (a map held still)
-            if all(c > change for _, c in changes):
-                return "both maps' ROIs changed by " + " and ".join(f"{c:.1%}" for _, c in changes) + \
-                    f" (more than {change:g})"
-            for name, c in changes:
-                if c > self.change:
-                    return f"{name}'s ROI changed by {c:.1%} (more than {self.change:g})"
-            return ""
-        for name, c in changes:
+        for m in maps:
+            c = roi_change(tr.rois.get(m.name), self.roi(m, roi_m))
             if c > change:
-                return f"{name}'s ROI changed by {c:.1%} (more than {change:g})"
+                return f"{m.name}'s ROI changed by {c:.1%} (more than {change:g})"
         return ""
 
     def searched(self, tr: Track, maps, roi_m: float, now: float) -> None:

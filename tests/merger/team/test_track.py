@@ -192,31 +192,3 @@ def test_the_settings_are_validated():
         MergeParams(research_period_s=-1.0)
     with pytest.raises(ValueError, match="research_change"):
         MergeParams(research_change=1.5)
-
-
-def test_a_refused_pair_waits_until_both_its_maps_changed():
-    """A pair without an accepted answer is searched again only when both its maps changed (one search per
-    pair per network period, not one per new version of either map) or at the staleness bound; a tracked
-    pair's re-search still follows either map's change."""
-    from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
-    from merger.team.params import MapInput
-
-    def grid(filled: int) -> OccupancyGrid:
-        s = np.full((200, 200), UNKNOWN_S, np.uint8)
-        s[60:140, 60:60 + filled] = FREE_S
-        s[60, 60:60 + filled] = OCCUPIED_S
-        return OccupancyGrid(s, 0.05, (-5.0, -5.0))
-
-    def m(name, version, filled):
-        return MapInput(name, grid(filled), (0.0, 0.0), version)
-
-    tk = Tracker(period_s=10.0, change=0.1)
-    tr = tk.track("A|B")
-    tk.searched(tr, (m("A", 0, 40), m("B", 0, 40)), 8.0, now=0.0)
-    grown_a = (m("A", 1, 60), m("B", 0, 40))  # A grew by half, B is the same
-    assert tk.due(tr, grown_a, 8.0, now=2.0) == ""
-    both = (m("A", 1, 60), m("B", 1, 60))
-    assert "both maps" in tk.due(tr, both, 8.0, now=2.0)
-    assert "last global search" in tk.due(tr, grown_a, 8.0, now=10.0)  # the staleness bound
-    tr.tracked, tr.placement = "an accepted answer", (0.0, (0.0, 0.0))  # tracked: either map's change
-    assert "A's ROI changed" in tk.due(tr, grown_a, 8.0, now=2.0)

@@ -100,3 +100,27 @@ def test_the_site_builds_strictly(tmp_path):
     assert 'id="merger.merge"' in html and 'id="merger.MergeResult"' in html
     # a docstring's :func:`merge` is a link to merge's entry, not text
     assert '<a class="autorefs autorefs-internal" title="merger.merge" href="#merger.merge"><code>merge</code></a>' in html
+
+
+def test_one_line_numpy_entries_become_descriptions():
+    """docs/hooks/docstrings.py: ``name : what it is`` (our docstrings' entries) reads as the name and its
+    description, not as a type (the reference showed descriptions, unrendered, in the type column)."""
+    pytest.importorskip("griffe")
+    spec = importlib.util.spec_from_file_location("site_docstrings", REPO / "docs" / "hooks" / "docstrings.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    doc = ("Merge maps.\n\nA line : with a colon, not in a section.\n\nParameters\n----------\n"
+           "maps : map files or :class:`~merger.grid.OccupancyGrid`\n    objects, each in its frame.\n"
+           "a, b : two numbers\n**settings : any setting\n\nReturns\n-------\nMergeResult\n    the verdict.\n\n"
+           "Notes\n-----\nx : stays as written in a free-text section\n")
+    assert mod.one_line_entries(doc) == (
+        "Merge maps.\n\nA line : with a colon, not in a section.\n\nParameters\n----------\n"
+        "maps\n    map files or :class:`~merger.grid.OccupancyGrid`\n    objects, each in its frame.\n"
+        "a, b\n    two numbers\n**settings\n    any setting\n\nReturns\n-------\nMergeResult\n    the verdict.\n\n"
+        "Notes\n-----\nx : stays as written in a free-text section\n")
+    import griffe
+
+    parsed = griffe.Docstring(mod.one_line_entries("Parameters\n----------\nmaps : the maps, each in its frame\n"),
+                              parser="numpy").parse()
+    (param,) = parsed[0].value
+    assert param.name == "maps" and param.description == "the maps, each in its frame" and not param.annotation

@@ -89,3 +89,13 @@ def adversarial_problem(seed: int, measure: str, window: bool) -> RotationProble
     w = float(rng.choice([0.05, 0.1, 0.15])) if window else 0.0
     floor = int(rng.choice([0, 0, 3, 25, 120]))  # the support floor: off, or biting some placements
     return RotationProblem(g, h, cr, cm, roi, measure, w, min_support=floor)
+
+
+def saved_views(folder, seed: int = 5):
+    """:func:`three_views` saved as ROS map_server files in ``folder``: (paths of their YAML files, centers
+    (x, y) per map, true rotations onto Lyon) — the command lines' inputs."""
+    from merger.io.mapio import save_map
+
+    _, names, maps, truth = three_views(seed)
+    paths = [save_map(g, folder / f"{n}.yaml")[0] for n, (g, _) in zip(names, maps, strict=True)]
+    return paths, [c for _, c in maps], truth

@@ -22,7 +22,7 @@ from merger.team.params import RULES
 from merger.team.superpose import fuse
 from merger.transform import rotation
 from tests.paths import REAL_MAP
-from tests.strategies import three_views
+from tests.strategies import saved_views
 
 REAL = REAL_MAP
 
@@ -30,13 +30,8 @@ REAL = REAL_MAP
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
     d = tmp_path_factory.mktemp("maps")
-    _, names, maps, truth = three_views(5)
-    paths, centers = [], []
-    for n, (g, c) in zip(names, maps, strict=True):
-        y, _ = save_map(g, d / f"{n}.yaml")
-        paths.append(y)
-        centers.append(f"{c[0]:.6f},{c[1]:.6f}")
-    return d, paths, centers, truth
+    paths, centers, truth = saved_views(d)
+    return d, paths, [f"{c[0]:.6f},{c[1]:.6f}" for c in centers], truth
 
 
 def test_align_json(saved, capsys):

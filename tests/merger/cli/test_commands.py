@@ -19,7 +19,7 @@ from merger.io.mapio import load_map, save_map
 from merger.search import angle_diff_deg
 from merger.synthetic import world_to_frame
 from merger.transform import rotation
-from tests.strategies import three_views
+from tests.strategies import saved_views
 
 
 def _args(argv):
@@ -30,13 +30,8 @@ def _args(argv):
 
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
-    d = tmp_path_factory.mktemp("maps")
-    _, names, maps, truth = three_views(5)
-    paths, centers = [], []
-    for n, (g, c) in zip(names, maps, strict=True):
-        paths.append(str(save_map(g, d / f"{n}.yaml")[0]))
-        centers.append(f"{c[0]!r},{c[1]!r}")
-    return paths, centers, truth
+    paths, centers, truth = saved_views(tmp_path_factory.mktemp("maps"))
+    return [str(p) for p in paths], [f"{c[0]!r},{c[1]!r}" for c in centers], truth
 
 
 def test_align_finds_the_known_rotation(saved, capsys):

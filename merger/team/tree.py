@@ -61,8 +61,15 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     ``around``: (θ°, (a, b) cells), an earlier answer of the pair — the search is then the exact local search
     about it (:func:`merger.search.local.local_search`, the tracker's re-verification: no runner-up, no guard)."""
     label = f"{maps[i].name}|{maps[j].name}"
+    checked: dict[int, tuple[Alignment, Verification]] = {}  # the ambiguity's verdicts, not computed twice
 
     def check(al: Alignment) -> Verification:
+        hit = checked.get(id(al))
+        if hit is None or hit[0] is not al:
+            hit = checked[id(al)] = (al, _check(al))
+        return hit[1]
+
+    def _check(al: Alignment) -> Verification:
         if params.verification_rule.whole_maps:
             return check_pair(maps[i].grid, warps.get(i, j, al.theta_deg, al.translation_m),
                               shifted(maps[i].center, al.translation_m), params, label)

@@ -153,10 +153,10 @@ def keep_frontier(problem, frontier) -> None:
 
 
 def drop_frontier(problem) -> None:
-    """Forget ``problem``'s frontier: its pair computation is over (the runner-up that reads it,
-    :func:`merger.team.ambiguity.resolve`, runs right after the search, on the same problem). Kept for
-    the problem's life, a frontier lived as long as any shared result held its alignment (the alignment
-    holds its problem for the guard beyond the window): 338 MB in the 32-robot hall's first 3 s."""
+    """Forget ``problem``'s frontier once its reader has run (:func:`merger.team.ambiguity.resolve`: the
+    runner-up searches right after the search, on the same problem). Kept for the problem's life, a frontier
+    lived as long as any shared result held its alignment (the alignment holds its problem for the guard
+    beyond the window): 338 MB in the 32-robot hall's first 3 s."""
     with _LOCK:
         _FRONTIERS.pop(problem, None)
 

@@ -149,7 +149,6 @@ def _within(fn, timeout_s: float) -> None:
         raise box["error"]
 
 
-
 def verdict_series(cfg, checks: dict) -> list[tuple[str, float, object]]:
     """The plot of a cycle's checks: "ν" per pair against ν_min when the rule verifies on whole maps
     (``whole_map``, ``contrast`` and ``auto``: the checks hold ω̃ of the whole maps), "score" against
@@ -157,6 +156,7 @@ def verdict_series(cfg, checks: dict) -> list[tuple[str, float, object]]:
     whole = verification_rule(cfg.verification).whole_maps
     return [(f"ν {k}" if whole else f"score {k}", v.nu, None) for k, v in checks.items()] + \
         [("ν_min" if whole else "score_min", cfg.nu_min if whole else cfg.score_min, GREY)]
+
 
 class RerunRecorder(Observer):
     """Records a run with rerun: live viewer, ``.rrd`` file, or both.

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import caches
 from ..search import (
     RUNNER_UP_MIN_SEPARATION_DEG,
     Alignment,
@@ -225,6 +226,9 @@ def resolve(problem: RotationProblem, al: Alignment, margin: float, nu_of: Calla
     # one searcher for both rivals: the search's own (its lattice tables), kept by merger.caches
     ev = searcher_for(problem) if margin > 0 else None
     rivals = [r for r in (rival(problem, al, margin, ev), shift_rival(problem, al, margin, ev)) if r is not None]
+    # the search's frontier has been read (the runner-up starts from it): forgotten, or every result that
+    # holds this alignment would keep it alive (its problem, for the guard: 338 MB in a 32-robot hall's 3 s)
+    caches.drop_frontier(problem)
     if not rivals:
         return al, None
     riv = max(rivals, key=lambda r: r.score)  # the first (the angle rival) of equal scores

@@ -26,7 +26,6 @@ import math
 import time
 from dataclasses import replace
 
-from .. import caches
 from ..grid import OccupancyGrid
 from ..search import Alignment, RotationProblem, angle_diff_deg, search, wrap_deg
 from ..search.local import local_search
@@ -107,10 +106,8 @@ def align_order(maps: list[MapInput], order: tuple[int, ...], params: MergeParam
             ref = "+".join(maps[x].name for x in placed)
 
             def step(prob=prob, ref=ref, sup=sup, k=k, m=m):
-                out = resolve(prob, search(prob, params.method), params.margin,
-                              _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
-                caches.drop_frontier(prob)  # read by resolve's runner-up; nothing asks for it again
-                return out
+                return resolve(prob, search(prob, params.method), params.margin,
+                               _step_check(sup, warps, order[0], k, params, f"{ref}|{m.name}"), ref, m.name)
             if memo is None:
                 hit = step()
             else:

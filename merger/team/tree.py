@@ -39,7 +39,6 @@ import time
 
 import numpy as np
 
-from .. import caches
 from ..search import Alignment, search
 from ..search.local import local_search
 from .ambiguity import resolve, rival
@@ -90,7 +89,6 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
                 al, amb = riv, None
             else:
                 impossible = f"impossible: the best alignment {why}" + ("" if riv is None else ", and so does its runner-up")
-    caches.drop_frontier(prob)  # the runner-up has been read off it (resolve): nothing asks for it again
     ver = check(al)
     if not al.has_evidence:
         ver = Verification(ver.nu, ver.counts, False, no_evidence(al, params.roi_min_support, label))

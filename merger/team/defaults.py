@@ -27,6 +27,10 @@ RESEARCH_PERIOD_S = 10.0  # Cartographer's global_constraint_search_after_n_seco
 RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed since the last global search
 RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
 
+# the team's ring (merger.team.teammates): the bench's robots are 0.18 m; a TurtleBot3 Waffle's footprint
+# is 0.22 m, a Burger's 0.105 m
+TEAMMATE_RADIUS_M = 0.2
+
 
 @dataclass(frozen=True)
 class VerificationRule:

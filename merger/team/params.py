@@ -57,6 +57,7 @@ from .defaults import (
     RESEARCH_DROP,
     RESEARCH_MODES,
     RESEARCH_PERIOD_S,
+    TEAMMATE_RADIUS_M,
     TOLERANCE_M,
     VERIFICATIONS,
     ResearchMode,
@@ -125,6 +126,10 @@ class MergeParams:
         (:func:`_combine`); off: the highest-Σν order's own placement (the thesis's rule). With the
         thesis's sparse maps (five scans per map) the Σν of a correct order and of one 2° off differed by
         less than ν can resolve on 200 cells, and the first of equal sums was sometimes the wrong one.
+    teammate_radius_m : the teammates' body radius, metres (``strategy: tree``): a map whose trajectory
+        circles the center has the occupied cells of the ring its team drives (its path's radii ± this
+        radius + ``window_m``/2) left out of every pair's search and check (:mod:`merger.team.teammates`:
+        robots across the circle see opposite faces of the same bodies); the merged map keeps them. 0: off.
     """
 
     roi_m: float = DEFAULT_ROI_M
@@ -146,6 +151,7 @@ class MergeParams:
     research_period_s: float = RESEARCH_PERIOD_S
     research_change: float = RESEARCH_CHANGE
     research_drop: float = RESEARCH_DROP
+    teammate_radius_m: float = TEAMMATE_RADIUS_M
 
     @property
     def margin(self) -> float:
@@ -277,6 +283,7 @@ RULES: dict[str, Rule] = {
                                 "searched globally is research every_version)"),
     "research_change": FRACTION,
     "research_drop": number(0.0, 2.0, why="the fall of a score in [-1, 1]"),
+    "teammate_radius_m": number(0.0, 10.0, why="a robot's body radius (0: off)"),
 }
 if list(RULES) != [f.name for f in fields(MergeParams)]:
     raise ImportError(f"MergeParams: rules for {list(RULES)}, settings {[f.name for f in fields(MergeParams)]}")

@@ -26,6 +26,8 @@ assembled:
 5. as with the orders (:func:`merger.team.orders.beyond_refusal`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
+Every pair sees its maps without the occupied cells of the ring the team drives (:mod:`merger.team.teammates`:
+teammates' bodies, seen from opposite sides across the circle, bias the pairs); the merged map keeps them.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
 team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
 x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.
@@ -49,6 +51,7 @@ from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
+from .teammates import without_teammates
 from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
@@ -136,6 +139,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     t0 = time.perf_counter()
     if memo is not None:
         memo.take_charged_ms()
+    given, maps = maps, _seen(maps, params, memo)  # the team's ring left out of the evidence (merged: kept)
     warps = Warps(maps)
     pairs: dict[tuple[int, int], PairResult] = {}
     live = set()
@@ -289,12 +293,25 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     if chosen is not None:
         chosen, sub_place = refine_chosen(sub, sub_place, sw, params, chosen)
         result = chosen
-        merged, layers = merged_on_frame0(sub, sub_place, sw)
+        shown = [given[k] for k in order]
+        same = all(a is b for a, b in zip(shown, sub, strict=True))
+        merged, layers = merged_on_frame0(shown, sub_place, sw if same else Warps(shown))
     report = AssemblyReport(len(team.used), {k: v for k, v in team.rejected.items()},
                             {names[k]: v for k, v in team.left_out.items()}, tuple(team.joins))
     return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
                            guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None),
                            memo.take_charged_ms() if memo is not None else 0.0, report)
+
+
+def _seen(maps: list[MapInput], params: MergeParams, memo: Memo | None) -> list[MapInput]:
+    """The maps as the pairs see them: each without the occupied cells of its team's ring
+    (:mod:`merger.team.teammates`), shared with the other robots of a simulation through ``memo``."""
+    def one(m: MapInput) -> MapInput:
+        if memo is None or m.trajectory is None:
+            return without_teammates(m, params.teammate_radius_m, params.window_m)
+        return memo.get(("teammates", map_key(m), params.teammate_radius_m, params.window_m),
+                        lambda: without_teammates(m, params.teammate_radius_m, params.window_m))
+    return [one(m) for m in maps]
 
 
 def _se2(p: Placement) -> SE2:

@@ -134,7 +134,9 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     """The hall with 7 robots, seed 1: at 5.7 s a five-edge chain of the spanning tree (one verified loop)
     placed maps 2.04–2.15° off, two false merges; the weaker loops of the adjustment bring every placement
     within the tolerance (here within 0.9°). The maps are those of the random-walk SLAM the case was found
-    with (``slam.model: odometry_only``); with the scan-matching SLAM every robot merges all seven maps
+    with (``slam.model: odometry_only``) and the evidence it was found on: the teammates' bodies included
+    (``teammate_radius_m: 0``; with the team's ring left out, the default, the first merges come at 8.5 s,
+    past the chain's case); with the scan-matching SLAM every robot merges all seven maps
     correctly by 12 s, none by 7 s (``test_the_scan_matching_slams_seven_robots_merge_without_false_merges``)."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
@@ -145,7 +147,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     sc = base.with_overrides([f"robots.names=[{', '.join(names)}]",
                               f"robots.start_angles_deg=[{', '.join(map(str, angles))}]",
                               "duration_s=7", "seed=1", "merger.strategy=tree", "merger.min_maps=2",
-                              "slam.model=odometry_only"])
+                              "slam.model=odometry_only", "merger.teammate_radius_m=0"])
     res = Simulation(sc).run()
     assert res.false_merges == 0
     assert sum(r.first_merge_s is not None for r in res.robots.values()) >= 5

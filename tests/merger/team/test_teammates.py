@@ -1,0 +1,92 @@
+"""The ring the team drives, left out of the pairs' evidence (merger.team.teammates)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from merger.grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+from merger.team.params import MapInput, MergeParams
+from merger.team.teammates import ring, without_teammates
+
+RES = 0.05
+
+
+def _map(states, center=(3.0, 3.0), trajectory=None):
+    return MapInput("A", OccupancyGrid(states, RES, (0.0, 0.0)), center, trajectory=trajectory)
+
+
+def _circle_path(radius, center=(3.0, 3.0), arc_deg=40.0, n=20, start_deg=0.0):
+    a = np.radians(np.linspace(start_deg, start_deg + arc_deg, n))
+    return np.c_[np.arange(n) * 0.1, center[0] + radius * np.cos(a), center[1] + radius * np.sin(a)]
+
+
+def _distance_of_cells(shape, center):
+    h, w = shape
+    xs = (np.arange(w) + 0.5) * RES - center[0]
+    ys = (np.arange(h) + 0.5) * RES - center[1]
+    return np.hypot(xs[None, :], ys[:, None])
+
+
+def test_the_ring_is_the_paths_radii_widened_by_the_body_and_half_the_window():
+    m = _map(np.zeros((120, 120), np.uint8), trajectory=_circle_path(2.0))
+    lo, hi = ring(m, 0.2, 0.5)
+    assert lo == pytest.approx(2.0 - 0.45) and hi == pytest.approx(2.0 + 0.45)
+    assert ring(m, 0.2, 0.0) == pytest.approx((1.8, 2.2))
+
+
+def test_no_ring_without_a_path_with_the_setting_off_or_for_a_path_that_is_no_circle():
+    states = np.full((120, 120), OCCUPIED_S, np.uint8)
+    assert ring(_map(states), 0.2, 0.5) is None
+    assert ring(_map(states, trajectory=_circle_path(2.0)), 0.0, 0.5) is None
+    wander = np.c_[np.arange(5.0), [3.0, 3.5, 4.0, 4.5, 5.5], [3.0] * 5]  # from the center out to 2.5 m
+    assert ring(_map(states, trajectory=wander), 0.2, 0.5) is None
+    m = _map(states, trajectory=wander)
+    assert without_teammates(m, 0.2, 0.5) is m
+
+
+def test_occupied_cells_on_the_ring_become_unknown_and_nothing_else_changes():
+    rng = np.random.default_rng(3)
+    states = rng.choice([UNKNOWN_S, FREE_S, OCCUPIED_S], size=(120, 120)).astype(np.uint8)
+    m = _map(states, trajectory=_circle_path(2.0))
+    out = without_teammates(m, 0.2, 0.5)
+    d = _distance_of_cells(states.shape, m.center)
+    on = (d >= 1.55) & (d <= 2.45)
+    assert (out.grid.states[on & (states == OCCUPIED_S)] == UNKNOWN_S).all()
+    assert (out.grid.states[on & (states != OCCUPIED_S)] == states[on & (states != OCCUPIED_S)]).all()
+    assert (out.grid.states[~on] == states[~on]).all()
+    assert (m.grid.states == states).all()  # the caller's map is not written
+    assert (out.name, out.center, out.grid.origin, out.grid.resolution) == ("A", m.center, (0.0, 0.0), RES)
+
+
+def test_the_ring_is_the_same_whatever_the_maps_rotation_about_the_center():
+    """A rotation about the center maps the ring onto itself: one mask serves every hypothesis."""
+    m = _map(np.zeros((120, 120), np.uint8), trajectory=_circle_path(2.0))
+    turned = _map(np.zeros((120, 120), np.uint8), trajectory=_circle_path(2.0, start_deg=137.0))
+    assert ring(m, 0.2, 0.5) == pytest.approx(ring(turned, 0.2, 0.5))
+
+
+def test_the_setting_is_checked():
+    assert MergeParams().teammate_radius_m == 0.2
+    for bad in (-0.1, math.nan, True):
+        with pytest.raises(ValueError, match="teammate_radius_m"):
+            MergeParams(teammate_radius_m=bad)
+
+
+def test_a_teammate_seen_from_both_sides_of_the_circle_is_gone_from_both_maps():
+    """Two maps of one body on the circle, one face each (as robots across the circle see it): both
+    faces are left out, the walls are kept."""
+    center = (3.0, 3.0)
+    d = _distance_of_cells((120, 120), center)
+    states = np.full((120, 120), FREE_S, np.uint8)
+    states[5, :] = OCCUPIED_S  # a wall 2.75 m below the center, off the ring
+    body = (2.0 * math.cos(1.0) + center[0], 2.0 * math.sin(1.0) + center[1])
+    xs, ys = np.meshgrid((np.arange(120) + 0.5) * RES, (np.arange(120) + 0.5) * RES)
+    rim = np.abs(np.hypot(xs - body[0], ys - body[1]) - 0.18) < RES
+    near, far = rim & (d < 2.0), rim & (d >= 2.0)
+    for face in (near, far):
+        s = states.copy()
+        s[face] = OCCUPIED_S
+        out = without_teammates(_map(s, center, _circle_path(2.0, center, start_deg=200.0)), 0.2, 0.5)
+        assert not (out.grid.states[face] == OCCUPIED_S).any()
+        assert (out.grid.states[5, :] == OCCUPIED_S).all()

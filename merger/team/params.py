@@ -129,7 +129,9 @@ class MergeParams:
     teammate_radius_m : the teammates' body radius, metres (``strategy: tree``): a map whose trajectory
         circles the center has the occupied cells of the ring its team drives (its path's radii ± this
         radius + ``window_m``/2) left out of every pair's search and check (:mod:`merger.team.teammates`:
-        robots across the circle see opposite faces of the same bodies); the merged map keeps them. 0: off.
+        robots across the circle see opposite faces of the same bodies); the merged map keeps them. 0 (the
+        default): off — in a bare hall the teammates are the only cue along the walls, and without them
+        pairs slid along the walls (measured in docs/experiments.md).
     """
 
     roi_m: float = DEFAULT_ROI_M

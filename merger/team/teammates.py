@@ -16,6 +16,11 @@ A rotation about the center maps the ring onto itself, so one mask serves every 
 search. Occupied cells on the ring become unknown; free cells stay (they are the team's evidence of free
 space). Nothing static stands there: the robots drive through it.
 
+Off by default (``MergeParams.teammate_radius_m`` 0): the teammates are also evidence. In a bare hall
+(generated floor plan 28: two long walls) they are the only cue along the walls; without them the pairs
+slid along the walls and placed 18 maps grossly in 6 s, where with them every robot merged by 4.6 s
+with no gross merge.
+
 The ring is used only when the path is one: its radii span at most twice the ring's margin (a circle
 about the center, up to the center error). A map without a trajectory, or whose robot wandered
 (a real map of an independent run), is left as it is. Pure: arrays in, arrays out.

@@ -67,7 +67,7 @@ def test_the_ring_is_the_same_whatever_the_maps_rotation_about_the_center():
 
 
 def test_the_setting_is_checked():
-    assert MergeParams().teammate_radius_m == 0.2
+    assert MergeParams().teammate_radius_m == 0.0  # off by default (the module's notes)
     for bad in (-0.1, math.nan, True):
         with pytest.raises(ValueError, match="teammate_radius_m"):
             MergeParams(teammate_radius_m=bad)

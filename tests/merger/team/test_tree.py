@@ -134,9 +134,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     """The hall with 7 robots, seed 1: at 5.7 s a five-edge chain of the spanning tree (one verified loop)
     placed maps 2.04–2.15° off, two false merges; the weaker loops of the adjustment bring every placement
     within the tolerance (here within 0.9°). The maps are those of the random-walk SLAM the case was found
-    with (``slam.model: odometry_only``) and the evidence it was found on: the teammates' bodies included
-    (``teammate_radius_m: 0``; with the team's ring left out, the default, the first merges come at 8.5 s,
-    past the chain's case); with the scan-matching SLAM every robot merges all seven maps
+    with (``slam.model: odometry_only``); with the scan-matching SLAM every robot merges all seven maps
     correctly by 12 s, none by 7 s (``test_the_scan_matching_slams_seven_robots_merge_without_false_merges``)."""
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
@@ -147,7 +145,7 @@ def test_seven_robots_in_the_hall_place_no_map_past_the_tolerance_along_a_chain(
     sc = base.with_overrides([f"robots.names=[{', '.join(names)}]",
                               f"robots.start_angles_deg=[{', '.join(map(str, angles))}]",
                               "duration_s=7", "seed=1", "merger.strategy=tree", "merger.min_maps=2",
-                              "slam.model=odometry_only", "merger.teammate_radius_m=0"])
+                              "slam.model=odometry_only"])
     res = Simulation(sc).run()
     assert res.false_merges == 0
     assert sum(r.first_merge_s is not None for r in res.robots.values()) >= 5
@@ -285,3 +283,22 @@ def test_a_local_answer_that_walked_away_from_its_hypothesis_is_searched_globall
     merge_tree(_inputs(names, maps, [2, 2, 2]), params, tracker=tracker, now=1.0)
     assert walked.globals == 2 and kept.globals == 1 and kept.locals == 1  # only the walked one searched again
     assert agree(walked.anchor, true_anchor) and agree(walked.placement, true_anchor)  # found where it was
+
+
+@pytest.mark.slow
+def test_twelve_robots_in_the_l_room_place_no_teammate_past_the_tolerance():
+    """benchmarks/scenarios/lroom12.yaml (12 robots on a 2.4 m circle in an L-shaped wall room, centers 0.2 m
+    off, every other merger setting default), seed 1, 11 s. With the teammates' bodies as evidence (the
+    default), robots across the circle matched opposite faces of the same bodies: 17 false merges 10–15 cm
+    and 2–3° off by 5.6 s, neither gross nor drift-limited. With the team's ring left out
+    (``teammate_radius_m: 0.2``, merger.team.teammates), none, and every robot merges its whole team (by 9.0 s)."""
+    from circsim.config.scenario import load_scenario
+    from circsim.sim import Simulation
+    from tests.paths import REPO
+
+    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
+        ["duration_s=11", "seed=1", "merger.teammate_radius_m=0.2"])
+    res = Simulation(sc).run().to_dict()
+    assert res["gross_merges"] == 0
+    assert res["false_merges"] - res["gross_merges"] - res["drift_limited_merges"] == 0, res["false_merges"]
+    assert all(r["first_merge_s"] is not None for r in res["robots"].values())

@@ -26,8 +26,9 @@ assembled:
 5. as with the orders (:func:`merger.team.orders.beyond_refusal`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
-Every pair sees its maps without the occupied cells of the ring the team drives (:mod:`merger.team.teammates`:
-teammates' bodies, seen from opposite sides across the circle, bias the pairs); the merged map keeps them.
+With ``teammate_radius_m`` set (off by default), every pair sees its maps without the occupied cells of the
+ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from opposite sides across the
+circle, bias the pairs); the merged map keeps them.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
 team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
 x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.
@@ -305,7 +306,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
 
 def _seen(maps: list[MapInput], params: MergeParams, memo: Memo | None) -> list[MapInput]:
     """The maps as the pairs see them: each without the occupied cells of its team's ring
-    (:mod:`merger.team.teammates`), shared with the other robots of a simulation through ``memo``."""
+    (:mod:`merger.team.teammates`), shared with the other robots of a simulation through ``memo``; the
+    maps themselves when the setting is off (the default)."""
+    if params.teammate_radius_m <= 0:
+        return maps
+
     def one(m: MapInput) -> MapInput:
         if memo is None or m.trajectory is None:
             return without_teammates(m, params.teammate_radius_m, params.window_m)

@@ -302,3 +302,36 @@ def test_twelve_robots_in_the_l_room_place_no_teammate_past_the_tolerance():
     assert res["gross_merges"] == 0
     assert res["false_merges"] - res["gross_merges"] - res["drift_limited_merges"] == 0, res["false_merges"]
     assert all(r["first_merge_s"] is not None for r in res["robots"].values())
+
+
+def test_with_the_teams_ring_left_out_the_pairs_do_not_see_it_but_the_merged_map_keeps_it(views):
+    """teammate_radius_m set: the searches and checks see the maps without their ring's occupied cells
+    (merger.team.teammates), the merged map is drawn from the maps as given."""
+    from merger.team.teammates import ring, without_teammates
+
+    _, names, maps, truth = views
+    inputs = []
+    for n, (g, c) in zip(names, maps, strict=True):
+        a0 = math.atan2(-c[1], -c[0])  # the robot starts at its frame's origin, on the circle about c
+        r = math.hypot(*c)
+        a = a0 + np.radians(np.linspace(0.0, 10.0, 11))
+        path = np.c_[np.arange(11) * 0.2, c[0] + r * np.cos(a), c[1] + r * np.sin(a)]
+        inputs.append(MapInput(n, g, c, None, path))
+    p = MergeParams(teammate_radius_m=0.2)
+    res = merge_tree(inputs, p)
+    assert res.chosen is not None
+    for n in names[1:]:
+        assert abs(angle_diff_deg(res.chosen.theta_deg[n], truth[n])) <= 2.0
+    lo, hi = ring(inputs[0], p.teammate_radius_m, p.window_m)
+    assert without_teammates(inputs[0], p.teammate_radius_m, p.window_m) is not inputs[0]  # the pairs saw less
+    own, merged, c = maps[0][0], res.merged, inputs[0].center
+    assert ((own.states == 2) & _band(own, c, lo + 0.1, hi - 0.1)).sum() > 0  # map 0 has cells on its ring
+    assert ((merged.states == 2) & _band(merged, c, lo + 0.1, hi - 0.1)).sum() > 0  # the merged map keeps them
+
+
+def _band(g, center, lo, hi):
+    h, w = g.states.shape
+    xs = g.origin[0] + (np.arange(w) + 0.5) * g.resolution - center[0]
+    ys = g.origin[1] + (np.arange(h) + 0.5) * g.resolution - center[1]
+    d = np.hypot(xs[None, :], ys[:, None])
+    return (d > lo) & (d < hi)

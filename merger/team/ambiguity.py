@@ -37,6 +37,7 @@ from ..search import (
     searcher_for,
     wrap_deg,
 )
+from ..search.searcher import COARSE
 from .verify import Verification
 
 RIVAL_SHIFT_M = 0.2  # a translation rival lies more than this from the best (merger.team.orders.AMBIGUOUS_M)
@@ -204,6 +205,36 @@ def shift_rival(problem: RotationProblem, al: Alignment, margin: float, ev=None)
     if al.score - top_value >= margin + PREFILTER_SLACK:
         return None
     return _exact_rival(problem, al, ev, fine_angles(th_c), th_c, tc, top_value, margin)
+
+
+RIDGE_CELLS = 4  # a ridge's rival lies at least this many cells (Chebyshev) from the answer: 0.2 m at 5 cm
+
+
+def ridge(problem: RotationProblem, al: Alignment, margin: float) -> str:
+    """Why ``al`` lies on a translation ridge, or "": the best ROI score at its coarse angle ± 1° over the
+    window's translations at least :data:`RIDGE_CELLS` from its own is within ``margin`` of its score (the
+    same branch and bound; nothing without a window or a margin). Unlike :func:`shift_rival`, whole maps do
+    not decide between the two: used when the team's ring is left out of the maps
+    (:mod:`merger.team.teammates`), where what is left along two long walls is the same on the whole maps
+    as on the ROI (a bare hall: 18 gross slides in 6 s, each 0.26–0.64 m along the walls, the angle exact)."""
+    k = problem.window_cells
+    if margin <= 0 or k == 0:
+        return ""
+    s = searcher_for(problem)
+    a0, b0 = al.cells
+    far = [(a, b) for b in range(-k, k + 1) for a in range(-k, k + 1)
+           if max(abs(a - a0), abs(b - b0)) >= RIDGE_CELLS]
+    if not far:
+        return ""
+    amask = np.zeros(360, bool)
+    c = int(round(al.theta_grid_deg)) % 360
+    amask[[(c - 1) % 360, c, (c + 1) % 360]] = True
+    best, _ = s.run(COARSE, amask=amask, tmask=s.translation_mask(far))
+    if best.value < al.score - margin:
+        return ""
+    (x, y), (x0, y0) = problem.offset_m(best.a, best.b), problem.offset_m(*al.cells)
+    return (f"a translation ridge: ROI score {best.value:.3f} at ({x:+.2f}, {y:+.2f}) m against "
+            f"{al.score:.3f} at ({x0:+.2f}, {y0:+.2f}) m")
 
 
 def verdict(nu_best: float, nu_runner_up: float, margin: float) -> str:

@@ -30,7 +30,8 @@ RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last g
 # the team's ring (merger.team.teammates): off by default. On, 0.2 m (the bench's robots are 0.18 m; a
 # TurtleBot3 Waffle's footprint 0.22 m, a Burger's 0.105 m): the 12-robot L room's false merges that are
 # neither gross nor drift-limited fell from 17-22 to 0-4 a minute, but in a bare hall (generated plan 28) the
-# teammates were the only cue along the walls, and without them the pairs placed 18 maps grossly in 6 s
+# teammates were the only cue along the walls, and without them the pairs placed 18 maps grossly in 6 s (refused
+# since as translation ridges: no merge there in 8 s), and newuser5's seed 2 merged 3.1 s later
 TEAMMATE_RADIUS_M = 0.0
 
 

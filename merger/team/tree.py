@@ -28,7 +28,8 @@ assembled:
 
 With ``teammate_radius_m`` set (off by default), every pair sees its maps without the occupied cells of the
 ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from opposite sides across the
-circle, bias the pairs); the merged map keeps them.
+circle, bias the pairs); the merged map keeps them. A pair whose answer then lies on a translation ridge
+(:func:`merger.team.ambiguity.ridge`) is refused: with the teammates gone, two long walls may be all there is.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
 team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
 x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.
@@ -44,7 +45,7 @@ import numpy as np
 
 from ..search import Alignment, search
 from ..search.local import local_search
-from .ambiguity import resolve, rival
+from .ambiguity import resolve, ridge, rival
 from .consensus import SE2, AssemblyReport, Measurement, Paths, assemble
 from .frames import Warps, compose, merged_on_frame0, shifted
 from .memo import Memo, map_key
@@ -100,6 +101,10 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
     elif impossible:
         ver = Verification(ver.nu, ver.counts, False, impossible)
+    if ver.passed and around is None and params.teammate_radius_m > 0:  # the ring left out: no slides
+        why = ridge(prob, al, params.margin)
+        if why:
+            ver = Verification(ver.nu, ver.counts, False, f"{label}: {why}", ver.contrast)
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
 
 

@@ -90,3 +90,27 @@ def test_a_teammate_seen_from_both_sides_of_the_circle_is_gone_from_both_maps():
         out = without_teammates(_map(s, center, _circle_path(2.0, center, start_deg=200.0)), 0.2, 0.5)
         assert not (out.grid.states[face] == OCCUPIED_S).any()
         assert (out.grid.states[5, :] == OCCUPIED_S).all()
+
+
+def _walls(box: bool) -> OccupancyGrid:
+    """A 10 x 10 m map, free inside two long walls 1 m either side of the center (5, 5); with ``box``, a
+    0.6 m box between them fixes the position along the walls."""
+    s = np.full((200, 200), FREE_S, np.uint8)
+    s[[79, 80, 119, 120], :] = OCCUPIED_S
+    if box:
+        s[95:107, 60:72] = OCCUPIED_S
+    return OccupancyGrid(s, RES, (0.0, 0.0))
+
+
+@pytest.mark.parametrize("box", [False, True])
+def test_a_slide_along_two_walls_is_a_translation_ridge_and_a_box_ends_it(box):
+    from merger.search import RotationProblem, search
+    from merger.team.ambiguity import ridge
+
+    g = _walls(box)
+    prob = RotationProblem(g, g, (5.0, 5.0), (5.0, 5.0), 8.0, "similarity", 0.5, False, 50)
+    al = search(prob, "fast")
+    assert abs(al.translation_m[1]) < 1e-9 and (box is False or abs(al.translation_m[0]) < 1e-9)
+    why = ridge(prob, al, 0.05)
+    assert (why != "") is (not box), why
+    assert ridge(prob, al, 0.0) == ""  # no margin: off

@@ -335,3 +335,18 @@ def _band(g, center, lo, hi):
     ys = g.origin[1] + (np.arange(h) + 0.5) * g.resolution - center[1]
     d = np.hypot(xs[None, :], ys[:, None])
     return (d > lo) & (d < hi)
+
+
+@pytest.mark.slow
+def test_with_the_ring_left_out_a_bare_halls_slides_are_refused():
+    """Generated floor plan 28 (a bare 6 x 11 m hall), centers 0.15 m off, ``teammate_radius_m: 0.2``: with the
+    teammates' bodies gone, two long walls are all the pairs share, and they placed maps 0.26–0.64 m along
+    them (18 gross false merges in 6 s). A pair on a translation ridge is now refused
+    (merger.team.ambiguity.ridge): no false merge; no robot merges that early either."""
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    sc = load_scenario(bundled_scenarios()["floorplan"]).with_overrides(
+        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=6", "merger.teammate_radius_m=0.2"])
+    res = Simulation(sc).run().to_dict()
+    assert res["false_merges"] == 0

@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_large_teams.py                                 # the default set below
     python benchmarks/bench_large_teams.py --run lroom12:60:1,2,3 --run hall16:30:1
     python benchmarks/bench_large_teams.py --baseline /tmp/old --run hall16:30:1   # the same runs on another checkout
+    python benchmarks/bench_large_teams.py --set merger.teammate_radius_m=0.2 --run lroom12:60:1  # an override
     python benchmarks/bench_large_teams.py --scaling 20    # N = 3 … 32 robots in one world, growth exponents
     python benchmarks/bench_large_teams.py --scaling 30 --sizes 3,4,8,12,16
 
@@ -48,13 +49,13 @@ def scenario_of(name: str):
     return (str(path) if path.exists() else base), extra
 
 
-def child(name: str, duration: float, seed: int) -> dict:
+def child(name: str, duration: float, seed: int, sets: list[str] = ()) -> dict:
     from circsim.config.scenario import bundled_scenarios, load_scenario
     from circsim.sim import Simulation
 
     src, extra = scenario_of(name)
     sc = load_scenario(bundled_scenarios().get(src, src)).with_overrides(
-        [f"duration_s={duration}", f"seed={seed}", *extra])
+        [f"duration_s={duration}", f"seed={seed}", *extra, *sets])
     t0 = time.perf_counter()
     d = Simulation(sc).run().to_dict()
     wall = time.perf_counter() - t0
@@ -76,10 +77,11 @@ def child(name: str, duration: float, seed: int) -> dict:
             "realtime": duration / wall, "cycle_ms": cycle.get("median"), "rss_mb": rss}
 
 
-def run_one(code: Path, spec: str, seed: int) -> dict:
+def run_one(code: Path, spec: str, seed: int, sets: list[str] = ()) -> dict:
     name, dur = spec.split(":")[:2]
     env = dict(os.environ, PYTHONPATH=str(code))
-    out = subprocess.run([sys.executable, __file__, "--child", f"{name}:{dur}:{seed}"], env=env, cwd=code,
+    out = subprocess.run([sys.executable, __file__, "--child", f"{name}:{dur}:{seed}",
+                          *(f"--set={s}" for s in sets)], env=env, cwd=code,
                          capture_output=True, text=True, check=False)
     if out.returncode != 0:
         return {"run": f"{name}:{dur}:{seed}", "error": out.stderr.strip().splitlines()[-1:]}
@@ -128,16 +130,18 @@ def main() -> None:
                          "(seed 1), and the growth exponents")
     ap.add_argument("--sizes", default=",".join(map(str, SCALING_NS)), metavar="N,N,...",
                     help="with --scaling: the team sizes (default: all; 32 takes hours at today's cost)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario override for every run, e.g. merger.teammate_radius_m=0.2 (repeatable)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         name, dur, seed = args.child.split(":")
-        print(json.dumps(child(name, float(dur), int(seed))))
+        print(json.dumps(child(name, float(dur), int(seed), args.set)))
         return
     if args.scaling:
         rows = []
         for n in (int(x) for x in args.sizes.split(",")):
-            rows.append(run_one(ROOT, f"scale{n}:{args.scaling:g}", 1))
+            rows.append(run_one(ROOT, f"scale{n}:{args.scaling:g}", 1, args.set))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
         print(scaling_table(rows), flush=True)
         return
@@ -148,7 +152,7 @@ def main() -> None:
         for spec in specs:
             seeds = spec.split(":")[2] if spec.count(":") == 2 else "1"
             for seed in seeds.split(","):
-                rows.append(run_one(code, spec, int(seed)))
+                rows.append(run_one(code, spec, int(seed), args.set))
                 print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
         print(table(rows, label), flush=True)
 

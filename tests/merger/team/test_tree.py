@@ -317,7 +317,7 @@ def test_with_the_teams_ring_left_out_the_pairs_do_not_see_it_but_the_merged_map
         a = a0 + np.radians(np.linspace(0.0, 10.0, 11))
         path = np.c_[np.arange(11) * 0.2, c[0] + r * np.cos(a), c[1] + r * np.sin(a)]
         inputs.append(MapInput(n, g, c, None, path))
-    p = MergeParams(teammate_radius_m=0.2)
+    p = MergeParams(teammate_radius_m=0.2, teammate_ring_from=2)  # four maps: left out only when asked
     res = merge_tree(inputs, p)
     assert res.chosen is not None
     for n in names[1:]:
@@ -325,6 +325,12 @@ def test_with_the_teams_ring_left_out_the_pairs_do_not_see_it_but_the_merged_map
     lo, hi = ring(inputs[0], p.teammate_radius_m, p.window_m)
     assert without_teammates(inputs[0], p.teammate_radius_m, p.window_m) is not inputs[0]  # the pairs saw less
     own, merged, c = maps[0][0], res.merged, inputs[0].center
+    # with the defaults, four maps are fewer than teammate_ring_from: the teammates stay as evidence, the
+    # result is the one with the ring off, bit for bit
+    small, off = merge_tree(inputs, MergeParams()), merge_tree(inputs, MergeParams(teammate_radius_m=0.0))
+    assert small.chosen.theta_deg == off.chosen.theta_deg
+    assert small.chosen.translation_m == off.chosen.translation_m
+    assert (small.merged.states == off.merged.states).all()
     assert ((own.states == 2) & _band(own, c, lo + 0.1, hi - 0.1)).sum() > 0  # map 0 has cells on its ring
     assert ((merged.states == 2) & _band(merged, c, lo + 0.1, hi - 0.1)).sum() > 0  # the merged map keeps them
 
@@ -347,6 +353,7 @@ def test_with_the_ring_left_out_a_bare_halls_slides_are_refused():
     from circsim.sim import Simulation
 
     sc = load_scenario(bundled_scenarios()["floorplan"]).with_overrides(
-        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=6", "merger.teammate_radius_m=0.2"])
+        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=6", "merger.teammate_radius_m=0.2",
+         "merger.teammate_ring_from=2"])
     res = Simulation(sc).run().to_dict()
     assert res["false_merges"] == 0

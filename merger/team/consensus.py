@@ -51,6 +51,7 @@ SEPARATION_M = 0.4  # two robots whose median distance over their common history
 TOUCH_M = 0.1  # ... or whose distance at some instant is below this (two bodies cannot overlap)
 MIN_COMMON = 3  # common trajectory samples needed before the median test speaks
 MAX_SAMPLES = 240  # the paths' common time grid, samples at most
+_EVALUATE_ONCE = True  # keep each join's evaluation between rounds (False: evaluate afresh; the tests compare)
 
 
 def compose(a: SE2, b: SE2) -> SE2:
@@ -298,6 +299,27 @@ def assemble(n: int, meas: list[Measurement], *, tested: int, nu_min: float, nam
                     + (f"; a lone measurement needs ν >= {bar:.3f}" if n_direct == 1 and routes == 1 else ""))
         return routes, wsum, t_ab, possible, evidence
 
+    ends = {m.label: (m.i, m.j) for m in meas}
+    answers: dict[tuple, object] = {}
+
+    def evaluate_once(ca: int, cb: int, direct: list[Measurement], full: bool):
+        """:func:`evaluate`, each answer computed once: it depends only on the two clusters (their members,
+        whose placements change only when their cluster grows), the direct measurements and the rejections
+        of measurements that touch the two clusters; a round's join leaves every other pair of clusters as
+        it was, so only the pairs with the grown cluster are evaluated again. An evaluation that rejected a
+        measurement (impossible) is not kept: its side effect is part of its answer."""
+        mem = set(members[ca]) | set(members[cb])
+        rej = frozenset((k, v) for k, v in rejected.items() if ends[k][0] in mem or ends[k][1] in mem)
+        key = (ca, cb, full, tuple(members[ca]), tuple(members[cb]), tuple(m.label for m in direct), rej)
+        hit = answers.get(key) if _EVALUATE_ONCE else None
+        if hit is not None:
+            return hit
+        before = dict(rejected)
+        got = evaluate(ca, cb, direct, full)
+        if rejected == before:
+            answers[key] = got
+        return got
+
     while True:
         why_not = {}
         between: dict[tuple[int, int], list[Measurement]] = {}
@@ -309,14 +331,14 @@ def assemble(n: int, meas: list[Measurement], *, tested: int, nu_min: float, nam
                 between.setdefault((min(ca, cb), max(ca, cb)), []).append(m)
         cands = []
         for (ca, cb), direct in sorted(between.items()):
-            got = evaluate(ca, cb, direct, full=False)
+            got = evaluate_once(ca, cb, direct, full=False)
             if isinstance(got, str):
                 why_not[frozenset((ca, cb))] = got
             else:
                 cands.append((-got[0], -got[1], ca, cb))
         best = None
         for _, _, ca, cb in sorted(cands):  # the strongest first, confirmed with every witness's route
-            got = evaluate(ca, cb, between[(ca, cb)], full=True)
+            got = evaluate_once(ca, cb, between[(ca, cb)], full=True)
             if isinstance(got, str):
                 why_not[frozenset((ca, cb))] = got
             else:

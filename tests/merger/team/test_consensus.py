@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -174,3 +175,36 @@ def test_wrong_minority_measurements_never_move_a_placed_map(n, seed, wrong, den
         if k:
             dth, dt = apart(a.place[k], truth[k])
             assert dth <= 10.0 and dt <= 0.2, (k, a.joins, a.rejected)
+
+
+@settings(max_examples=80, deadline=None)
+@given(n=st.integers(3, 16), seed=st.integers(0, 10_000), wrong=st.integers(0, 6), density=st.floats(0.3, 1.0),
+       stacked=st.booleans(), paths=st.booleans())
+def test_each_join_evaluated_once_gives_the_assembly_evaluated_afresh(n, seed, wrong, density, stacked, paths):
+    """The assembly keeps a join's evaluation between rounds (only the pairs with the grown cluster are
+    evaluated again): on random teams with wrong measurements of every strength, impossible ones (a team
+    stacked on one spot, with the robots' paths) and partial measurement sets, the same placements,
+    rejections with their reasons, left-out maps and joins as evaluating every pair afresh each round."""
+    import merger.team.consensus as consensus
+
+    rng = np.random.default_rng(seed)
+    truth = [(360.0 * k / n, *map(float, rng.uniform(-0.2, 0.2, 2))) for k in range(n)]
+    names = _names(n)
+    pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < density]
+    bad = set(map(tuple, rng.permutation(pairs)[:wrong])) if pairs else set()
+    meas = []
+    for i, j in pairs:
+        if stacked and (i, j) in bad:  # the identity: every robot on one spot
+            meas.append(Measurement(i, j, (0.0, 0.0, 0.0), float(rng.uniform(0.5, 0.99)), f"{names[i]}|{names[j]}"))
+            continue
+        off = (float(rng.uniform(20, 340)), *map(float, rng.uniform(-0.5, 0.5, 2))) if (i, j) in bad else (0, 0, 0)
+        meas.append(_meas(truth, i, j, float(rng.uniform(0.5, 0.99)), off=off, names=names))
+    traj = _circle_paths(n, truth) if paths else None
+    kw = dict(tested=n * (n - 1) // 2, nu_min=0.5, names=names, trajectories=traj)
+    once = assemble(n, meas, **kw)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(consensus, "_EVALUATE_ONCE", False)
+        fresh = assemble(n, meas, **kw)
+    assert once.place == fresh.place
+    assert [m.label for m in once.used] == [m.label for m in fresh.used]
+    assert once.rejected == fresh.rejected and once.left_out == fresh.left_out and once.joins == fresh.joins

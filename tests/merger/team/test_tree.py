@@ -288,16 +288,18 @@ def test_a_local_answer_that_walked_away_from_its_hypothesis_is_searched_globall
 @pytest.mark.slow
 def test_twelve_robots_in_the_l_room_place_no_teammate_past_the_tolerance():
     """benchmarks/scenarios/lroom12.yaml (12 robots on a 2.4 m circle in an L-shaped wall room, centers 0.2 m
-    off, every other merger setting default), seed 1, 11 s. With the teammates' bodies as evidence (the
-    default), robots across the circle matched opposite faces of the same bodies: 17 false merges 10–15 cm
-    and 2–3° off by 5.6 s, neither gross nor drift-limited. With the team's ring left out
-    (``teammate_radius_m: 0.2``, merger.team.teammates), none, and every robot merges its whole team (by 9.0 s)."""
+    off, every merger setting default), seed 1, 11 s. With the teammates' bodies as evidence (the default
+    until 2026-12-07, ``teammate_radius_m: 0`` now), robots across the circle matched opposite faces of the
+    same bodies: 17 false merges 10–15 cm and 2–3° off by 5.6 s, neither gross nor drift-limited. With the
+    team's ring left out (the default from nine maps, merger.team.teammates), none, and every robot merges
+    its whole team (by 9.0 s)."""
     from circsim.config.scenario import load_scenario
     from circsim.sim import Simulation
     from tests.paths import REPO
 
     sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
-        ["duration_s=11", "seed=1", "merger.teammate_radius_m=0.2"])
+        ["duration_s=11", "seed=1"])
+    assert sc.merger.teammate_radius_m > 0 and sc.merger.teammate_ring_from <= len(sc.robots.names)
     res = Simulation(sc).run().to_dict()
     assert res["gross_merges"] == 0
     assert res["false_merges"] - res["gross_merges"] - res["drift_limited_merges"] == 0, res["false_merges"]

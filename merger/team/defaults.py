@@ -27,15 +27,12 @@ RESEARCH_PERIOD_S = 10.0  # Cartographer's global_constraint_search_after_n_seco
 RESEARCH_CHANGE = 0.1  # fraction of an ROI's known cells whose state changed since the last global search
 RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last global search's ν
 
-# the team's ring (merger.team.teammates): 0.2 m (the bench's robots are 0.18 m; a TurtleBot3 Waffle's
-# footprint 0.22 m, a Burger's 0.105 m), left out of merges of TEAMMATE_RING_FROM maps or more. In the
-# 12-robot L room it cut the false merges that are neither gross nor drift-limited from 17-22 to 0-4 a
-# minute; in a bare hall of four (generated plan 28) the
-# teammates were the only cue along the walls (without them: 18 gross slides in 6 s, refused since as
-# translation ridges, so no merge there in 8 s), and five robots (newuser5, seed 2) merged 3.1 s later.
-# Measured in docs/experiments.md ("teammates as evidence").
-TEAMMATE_RADIUS_M = 0.2
-TEAMMATE_RING_FROM = 9
+# the team's ring (merger.team.teammates): off by default. On, 0.2 m (the bench's robots are 0.18 m; a
+# TurtleBot3 Waffle's footprint 0.22 m, a Burger's 0.105 m): the 12-robot L room's false merges that are
+# neither gross nor drift-limited fell from 17-22 to 0-4 a minute, but in a bare hall (generated plan 28) the
+# teammates were the only cue along the walls, and without them the pairs placed 18 maps grossly in 6 s (refused
+# since as translation ridges: no merge there in 8 s), and newuser5's seed 2 merged 3.1 s later
+TEAMMATE_RADIUS_M = 0.0
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,6 @@ from .defaults import (
     RESEARCH_MODES,
     RESEARCH_PERIOD_S,
     TEAMMATE_RADIUS_M,
-    TEAMMATE_RING_FROM,
     TOLERANCE_M,
     VERIFICATIONS,
     ResearchMode,
@@ -127,15 +126,12 @@ class MergeParams:
         (:func:`_combine`); off: the highest-Σν order's own placement (the thesis's rule). With the
         thesis's sparse maps (five scans per map) the Σν of a correct order and of one 2° off differed by
         less than ν can resolve on 200 cells, and the first of equal sums was sometimes the wrong one.
-    teammate_radius_m : the teammates' body radius, metres (``strategy: tree``, merges of at least
-        ``teammate_ring_from`` maps): a map whose trajectory circles the center has the occupied cells of
-        the ring its team drives (its path's radii ± this radius + ``window_m``/2) left out of every pair's
-        search and check (:mod:`merger.team.teammates`: robots across the circle see opposite faces of the
-        same bodies), and a pair whose answer then lies on a translation ridge is refused; the merged map
-        keeps every cell. 0: off. Default 0.2 m.
-    teammate_ring_from : the smallest merge (number of maps) in which the ring is left out; default 9. In
-        smaller teams the teammates are few and are evidence: in a bare hall of four they were the only cue
-        along the walls (measured in docs/experiments.md).
+    teammate_radius_m : the teammates' body radius, metres (``strategy: tree``): a map whose trajectory
+        circles the center has the occupied cells of the ring its team drives (its path's radii ± this
+        radius + ``window_m``/2) left out of every pair's search and check (:mod:`merger.team.teammates`:
+        robots across the circle see opposite faces of the same bodies); the merged map keeps them. 0 (the
+        default): off — in a bare hall the teammates are the only cue along the walls, and without them
+        pairs slid along the walls (measured in docs/experiments.md).
     """
 
     roi_m: float = DEFAULT_ROI_M
@@ -158,7 +154,6 @@ class MergeParams:
     research_change: float = RESEARCH_CHANGE
     research_drop: float = RESEARCH_DROP
     teammate_radius_m: float = TEAMMATE_RADIUS_M
-    teammate_ring_from: int = TEAMMATE_RING_FROM
 
     @property
     def margin(self) -> float:
@@ -167,11 +162,6 @@ class MergeParams:
         if self.ambiguity_margin is not None:
             return float(self.ambiguity_margin)
         return AMBIGUITY_MARGIN if self.window_m > 0 else 0.0
-
-    def ring_in(self, n: int) -> bool:
-        """Whether a merge of ``n`` maps leaves its team's ring out (``teammate_radius_m`` > 0 and
-        ``n`` ≥ ``teammate_ring_from``)."""
-        return self.teammate_radius_m > 0 and n >= self.teammate_ring_from
 
     @property
     def verification_rule(self) -> VerificationRule:
@@ -296,7 +286,6 @@ RULES: dict[str, Rule] = {
     "research_change": FRACTION,
     "research_drop": number(0.0, 2.0, why="the fall of a score in [-1, 1]"),
     "teammate_radius_m": number(0.0, 10.0, why="a robot's body radius (0: off)"),
-    "teammate_ring_from": count(2, why="a number of maps in one merge"),
 }
 if list(RULES) != [f.name for f in fields(MergeParams)]:
     raise ImportError(f"MergeParams: rules for {list(RULES)}, settings {[f.name for f in fields(MergeParams)]}")

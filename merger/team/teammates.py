@@ -16,15 +16,12 @@ A rotation about the center maps the ring onto itself, so one mask serves every 
 search. Occupied cells on the ring become unknown; free cells stay (they are the team's evidence of free
 space). Nothing static stands there: the robots drive through it.
 
-Left out only in merges of at least ``MergeParams.teammate_ring_from`` maps (default 9; the radius
-``teammate_radius_m`` 0.2 m, 0: never): the teammates are also evidence. In a bare hall of four robots
+Off by default (``MergeParams.teammate_radius_m`` 0): the teammates are also evidence. In a bare hall
 (generated floor plan 28: two long walls) they are the only cue along the walls; without them the pairs
 slid along the walls and placed 18 maps grossly in 6 s, where with them every robot merged by 4.6 s
 with no gross merge. With the ring left out, a pair on such a ridge is therefore refused
 (:func:`merger.team.ambiguity.ridge`, in :func:`merger.team.tree.pair_result`): plan 28 then has no
-false merge, and no merge in its first 8 s. In larger teams the bodies outnumber what the walls give:
-12 robots in an L-shaped room had 17–22 false merges a minute that were neither gross nor drift-limited
-with them, 0–4 without (docs/experiments.md).
+false merge, and no merge in its first 8 s.
 
 The ring is used only when the path is one: its radii span at most twice the ring's margin (a circle
 about the center, up to the center error). A map without a trajectory, or whose robot wandered

@@ -26,7 +26,7 @@ assembled:
 5. as with the orders (:func:`merger.team.orders.beyond_refusal`), an assembly is refused when a tree edge's search
    found a better alignment beyond the translation window.
 
-With ``teammate_radius_m`` set (the default, 0.2 m) and at least ``teammate_ring_from`` maps (9), every pair sees its maps without the occupied cells of the
+With ``teammate_radius_m`` set (off by default), every pair sees its maps without the occupied cells of the
 ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from opposite sides across the
 circle, bias the pairs); the merged map keeps them. A pair whose answer then lies on a translation ridge
 (:func:`merger.team.ambiguity.ridge`) is refused: with the teammates gone, two long walls may be all there is.
@@ -39,7 +39,6 @@ placements, the loops, the adjustment, the bridges) is :mod:`merger.team.posegra
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
@@ -102,7 +101,7 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
         ver = Verification(ver.nu, ver.counts, False, amb.reason)
     elif impossible:
         ver = Verification(ver.nu, ver.counts, False, impossible)
-    if ver.passed and around is None and params.ring_in(len(maps)):  # the ring left out: no slides
+    if ver.passed and around is None and params.teammate_radius_m > 0:  # the ring left out: no slides
         why = ridge(prob, al, params.margin)
         if why:
             ver = Verification(ver.nu, ver.counts, False, f"{label}: {why}", ver.contrast)
@@ -146,10 +145,6 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     t0 = time.perf_counter()
     if memo is not None:
         memo.take_charged_ms()
-    # the caller's settings name the pairs in ``reuse`` (pair_key), with whether the ring is left out beside them
-    keyed, ring = params, params.ring_in(len(maps))
-    if params.teammate_radius_m > 0 and not ring:  # a small team: its teammates are evidence
-        params = dataclasses.replace(params, teammate_radius_m=0.0)
     given, maps = maps, _seen(maps, params, memo)  # the team's ring left out of the evidence (merged: kept)
     warps = Warps(maps)
     pairs: dict[tuple[int, int], PairResult] = {}
@@ -159,8 +154,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         # every robot searches a pair the same way: the map whose name comes first is the reference (so
         # teammates' results are the same, and shared through the memo)
         r, m = (j, i) if maps[j].name < maps[i].name else (i, j)
-        key = pair_key(maps[r], maps[m], keyed) if reuse is not None else None
-        key = key + ("ring",) if key is not None and ring else key
+        key = pair_key(maps[r], maps[m], params) if reuse is not None else None
         hit = reuse.get(key) if key is not None else None
         live.add(key)
         if hit is None:

@@ -67,16 +67,10 @@ def test_the_ring_is_the_same_whatever_the_maps_rotation_about_the_center():
 
 
 def test_the_setting_is_checked():
-    p = MergeParams()  # on by default, from nine maps in one merge (the module's notes)
-    assert (p.teammate_radius_m, p.teammate_ring_from) == (0.2, 9)
-    assert not p.ring_in(8) and p.ring_in(9) and p.ring_in(32)
-    assert not MergeParams(teammate_radius_m=0.0).ring_in(32)
+    assert MergeParams().teammate_radius_m == 0.0  # off by default (the module's notes)
     for bad in (-0.1, math.nan, True):
         with pytest.raises(ValueError, match="teammate_radius_m"):
             MergeParams(teammate_radius_m=bad)
-    for bad in (1, 2.5, True):
-        with pytest.raises(ValueError, match="teammate_ring_from"):
-            MergeParams(teammate_ring_from=bad)
 
 
 def test_a_teammate_seen_from_both_sides_of_the_circle_is_gone_from_both_maps():

@@ -288,18 +288,16 @@ def test_a_local_answer_that_walked_away_from_its_hypothesis_is_searched_globall
 @pytest.mark.slow
 def test_twelve_robots_in_the_l_room_place_no_teammate_past_the_tolerance():
     """benchmarks/scenarios/lroom12.yaml (12 robots on a 2.4 m circle in an L-shaped wall room, centers 0.2 m
-    off, every merger setting default), seed 1, 11 s. With the teammates' bodies as evidence (the default
-    until 2026-12-07, ``teammate_radius_m: 0`` now), robots across the circle matched opposite faces of the
-    same bodies: 17 false merges 10–15 cm and 2–3° off by 5.6 s, neither gross nor drift-limited. With the
-    team's ring left out (the default from nine maps, merger.team.teammates), none, and every robot merges
-    its whole team (by 9.0 s)."""
+    off, every other merger setting default), seed 1, 11 s. With the teammates' bodies as evidence (the
+    default), robots across the circle matched opposite faces of the same bodies: 17 false merges 10–15 cm
+    and 2–3° off by 5.6 s, neither gross nor drift-limited. With the team's ring left out
+    (``teammate_radius_m: 0.2``, merger.team.teammates), none, and every robot merges its whole team (by 9.0 s)."""
     from circsim.config.scenario import load_scenario
     from circsim.sim import Simulation
     from tests.paths import REPO
 
     sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
-        ["duration_s=11", "seed=1"])
-    assert sc.merger.teammate_radius_m > 0 and sc.merger.teammate_ring_from <= len(sc.robots.names)
+        ["duration_s=11", "seed=1", "merger.teammate_radius_m=0.2"])
     res = Simulation(sc).run().to_dict()
     assert res["gross_merges"] == 0
     assert res["false_merges"] - res["gross_merges"] - res["drift_limited_merges"] == 0, res["false_merges"]
@@ -319,7 +317,7 @@ def test_with_the_teams_ring_left_out_the_pairs_do_not_see_it_but_the_merged_map
         a = a0 + np.radians(np.linspace(0.0, 10.0, 11))
         path = np.c_[np.arange(11) * 0.2, c[0] + r * np.cos(a), c[1] + r * np.sin(a)]
         inputs.append(MapInput(n, g, c, None, path))
-    p = MergeParams(teammate_radius_m=0.2, teammate_ring_from=2)  # four maps: left out only when asked
+    p = MergeParams(teammate_radius_m=0.2)
     res = merge_tree(inputs, p)
     assert res.chosen is not None
     for n in names[1:]:
@@ -327,12 +325,6 @@ def test_with_the_teams_ring_left_out_the_pairs_do_not_see_it_but_the_merged_map
     lo, hi = ring(inputs[0], p.teammate_radius_m, p.window_m)
     assert without_teammates(inputs[0], p.teammate_radius_m, p.window_m) is not inputs[0]  # the pairs saw less
     own, merged, c = maps[0][0], res.merged, inputs[0].center
-    # with the defaults, four maps are fewer than teammate_ring_from: the teammates stay as evidence, the
-    # result is the one with the ring off, bit for bit
-    small, off = merge_tree(inputs, MergeParams()), merge_tree(inputs, MergeParams(teammate_radius_m=0.0))
-    assert small.chosen.theta_deg == off.chosen.theta_deg
-    assert small.chosen.translation_m == off.chosen.translation_m
-    assert (small.merged.states == off.merged.states).all()
     assert ((own.states == 2) & _band(own, c, lo + 0.1, hi - 0.1)).sum() > 0  # map 0 has cells on its ring
     assert ((merged.states == 2) & _band(merged, c, lo + 0.1, hi - 0.1)).sum() > 0  # the merged map keeps them
 
@@ -355,7 +347,6 @@ def test_with_the_ring_left_out_a_bare_halls_slides_are_refused():
     from circsim.sim import Simulation
 
     sc = load_scenario(bundled_scenarios()["floorplan"]).with_overrides(
-        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=6", "merger.teammate_radius_m=0.2",
-         "merger.teammate_ring_from=2"])
+        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=6", "merger.teammate_radius_m=0.2"])
     res = Simulation(sc).run().to_dict()
     assert res["false_merges"] == 0

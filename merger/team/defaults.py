@@ -33,6 +33,7 @@ RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last g
 # teammates were the only cue along the walls, and without them the pairs placed 18 maps grossly in 6 s (refused
 # since as translation ridges: no merge there in 8 s), and newuser5's seed 2 merged 3.1 s later
 TEAMMATE_RADIUS_M = 0.0
+TEAMMATE_SHIFT_M = 0.0
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,7 @@ def pair_key(ref: MapInput, mov: MapInput, params: MergeParams):
         return None
     return (ref.name, ref.version, tuple(ref.center), mov.name, mov.version, tuple(mov.center),
             params.roi_m, params.measure, params.method, params.window_m, params.refine, params.margin,
-            params.roi_min_support, params.teammate_radius_m)
+            params.roi_min_support, params.teammate_radius_m, params.teammate_shift_m)
 
 
 def problem_for(ref: OccupancyGrid, ref_center, mov: MapInput, params: MergeParams) -> RotationProblem:

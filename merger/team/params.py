@@ -58,6 +58,7 @@ from .defaults import (
     RESEARCH_MODES,
     RESEARCH_PERIOD_S,
     TEAMMATE_RADIUS_M,
+    TEAMMATE_SHIFT_M,
     TOLERANCE_M,
     VERIFICATIONS,
     ResearchMode,
@@ -132,6 +133,17 @@ class MergeParams:
         robots across the circle see opposite faces of the same bodies); the merged map keeps them. 0 (the
         default): off — in a bare hall the teammates are the only cue along the walls, and without them
         pairs slid along the walls (measured in docs/experiments.md).
+    teammate_shift_m : how far each occupied cell on the ring its team drives (the map's path radii ± twice
+        this + ``window_m``/2) is moved along the line of sight from the map's robot, metres (``strategy:
+        tree``; :func:`merger.team.teammates.teammates_centred`): a teammate's face, as this robot sees it,
+        moved towards the teammate's centre line, so that robots across the circle and beside a teammate
+        place its body alike. Uncorrected, the faces seen from across the circle (the inner side) and from
+        beside it (the flank) make every pair across the circle pull its maps towards each other, and the
+        whole team's placement shrinks towards the center — consistent around every cycle, so no check of
+        the team sees it (12 robots in an L room: each map 3–7 cm inwards, pairs across 10–16 cm off). The
+        searches, local searches and checks use the moved cells; the merged map keeps the maps as given; a
+        map without a path, or whose path is no circle about the center, is left as it is. 0: off. Not
+        used when ``teammate_radius_m`` leaves the ring out.
     """
 
     roi_m: float = DEFAULT_ROI_M
@@ -154,6 +166,7 @@ class MergeParams:
     research_change: float = RESEARCH_CHANGE
     research_drop: float = RESEARCH_DROP
     teammate_radius_m: float = TEAMMATE_RADIUS_M
+    teammate_shift_m: float = TEAMMATE_SHIFT_M
 
     @property
     def margin(self) -> float:
@@ -286,6 +299,7 @@ RULES: dict[str, Rule] = {
     "research_change": FRACTION,
     "research_drop": number(0.0, 2.0, why="the fall of a score in [-1, 1]"),
     "teammate_radius_m": number(0.0, 10.0, why="a robot's body radius (0: off)"),
+    "teammate_shift_m": number(0.0, 1.0, why="a distance within a robot's body (0: off)"),
 }
 if list(RULES) != [f.name for f in fields(MergeParams)]:
     raise ImportError(f"MergeParams: rules for {list(RULES)}, settings {[f.name for f in fields(MergeParams)]}")

@@ -53,7 +53,7 @@ from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
-from .teammates import without_teammates
+from .teammates import teammates_centred, without_teammates
 from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
@@ -310,17 +310,21 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
 
 
 def _seen(maps: list[MapInput], params: MergeParams, memo: Memo | None) -> list[MapInput]:
-    """The maps as the pairs see them: each without the occupied cells of its team's ring
-    (:mod:`merger.team.teammates`), shared with the other robots of a simulation through ``memo``; the
-    maps themselves when the setting is off (the default)."""
-    if params.teammate_radius_m <= 0:
+    """The maps as the pairs see them: each without the occupied cells of its team's ring, or with them
+    moved towards the teammates' centrelines (:mod:`merger.team.teammates`), shared with the other robots of
+    a simulation through ``memo``; the maps themselves when both settings are off."""
+    if params.teammate_radius_m > 0:
+        how, arg = without_teammates, params.teammate_radius_m
+    elif params.teammate_shift_m > 0:
+        how, arg = teammates_centred, params.teammate_shift_m
+    else:
         return maps
 
     def one(m: MapInput) -> MapInput:
         if memo is None or m.trajectory is None:
-            return without_teammates(m, params.teammate_radius_m, params.window_m)
-        return memo.get(("teammates", map_key(m), params.teammate_radius_m, params.window_m),
-                        lambda: without_teammates(m, params.teammate_radius_m, params.window_m))
+            return how(m, arg, params.window_m)
+        return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m),
+                        lambda: how(m, arg, params.window_m))
     return [one(m) for m in maps]
 
 

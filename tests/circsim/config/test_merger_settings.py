@@ -64,7 +64,7 @@ REFUSED = {"roi_m": -1.0, "measure": "sad", "method": "slow", "verification": "m
            "min_support": -1, "score_min": -2.0, "window_m": -1.0, "refine": "yes", "ambiguity_margin": 2.0,
            "combine_orders": 0, "roi_min_support": 2 ** 40, "tolerance_m": 0.0, "contrast_min": -1.0,
            "refine_whole": None, "research": "sometimes", "research_period_s": 0.0, "research_change": 1.5,
-           "research_drop": 3.0, "teammate_radius_m": -0.2}
+           "research_drop": 3.0, "teammate_radius_m": -0.2, "teammate_shift_m": 1.5}
 
 
 @pytest.mark.parametrize("name", list(params.RULES))

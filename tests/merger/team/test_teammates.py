@@ -114,3 +114,64 @@ def test_a_slide_along_two_walls_is_a_translation_ridge_and_a_box_ends_it(box):
     why = ridge(prob, al, 0.05)
     assert (why != "") is (not box), why
     assert ridge(prob, al, 0.0) == ""  # no margin: off
+
+
+def _face(states_shape, body, seen_from, radius=0.18):
+    """The cells of a round body's rim that a robot at ``seen_from`` sees (normals within 60° of it)."""
+    h, w = states_shape
+    xs, ys = np.meshgrid((np.arange(w) + 0.5) * RES, (np.arange(h) + 0.5) * RES)
+    rim = np.abs(np.hypot(xs - body[0], ys - body[1]) - radius) < RES / 2
+    to = np.array(seen_from, float) - body
+    to /= np.linalg.norm(to)
+    return rim & (((xs - body[0]) * to[0] + (ys - body[1]) * to[1]) / radius > math.cos(math.radians(60)))
+
+
+def _centroid(mask):
+    r, c = np.nonzero(mask)
+    return np.array([(c.mean() + 0.5) * RES, (r.mean() + 0.5) * RES])
+
+
+@pytest.mark.parametrize("seen_from_deg", [200.0, 330.0, 20.0])
+def test_centring_moves_a_teammates_face_towards_its_body_along_the_line_of_sight(seen_from_deg):
+    """A teammate on the circle, seen from across it (200°) and from the side (330°, 20°): its face's cells
+    move ``shift`` along the line of sight from the robot's path, towards the body's centre."""
+    from merger.team.teammates import teammates_centred
+
+    center = np.array([3.0, 3.0])
+    body = center + 2.0 * np.array([math.cos(1.0), math.sin(1.0)])
+    path = _circle_path(2.0, tuple(center), arc_deg=10.0, start_deg=seen_from_deg - 5.0)
+    seen = path[-1, 1:3]
+    states = np.full((120, 120), FREE_S, np.uint8)
+    states[5, :] = OCCUPIED_S  # a wall off the ring
+    face = _face(states.shape, body, seen)
+    states[face] = OCCUPIED_S
+    out = teammates_centred(_map(states, tuple(center), path), 0.09, 0.5)
+    moved = out.grid.states == OCCUPIED_S
+    moved[5, :] = False
+    before, after = _centroid(face), _centroid(moved)
+    sight = (before - seen) / np.linalg.norm(before - seen)
+    assert np.dot(after - before, sight) == pytest.approx(0.09, abs=RES / 2)
+    assert np.linalg.norm(after - body) < np.linalg.norm(before - body)
+    assert (out.grid.states[5, :] == OCCUPIED_S).all()  # off the ring: as it was
+    left = face & ~moved
+    assert (out.grid.states[left] == UNKNOWN_S).all()  # where the face was is unknown, not free
+    assert (states[face] == OCCUPIED_S).all()  # the caller's map is not written
+
+
+def test_centring_needs_a_path_that_circles_the_center():
+    from merger.team.teammates import teammates_centred
+
+    states = np.full((120, 120), OCCUPIED_S, np.uint8)
+    m = _map(states)
+    assert teammates_centred(m, 0.09, 0.5) is m
+    wander = np.c_[np.arange(5.0), [3.0, 3.5, 4.0, 4.5, 5.5], [3.0] * 5]
+    m = _map(states, trajectory=wander)
+    assert teammates_centred(m, 0.09, 0.5) is m
+    m = _map(np.full((120, 120), FREE_S, np.uint8), trajectory=_circle_path(2.0))
+    assert teammates_centred(m, 0.09, 0.5) is m  # nothing on the ring
+
+
+def test_the_shift_is_checked():
+    for bad in (-0.1, math.nan, True, 2.0):
+        with pytest.raises(ValueError, match="teammate_shift_m"):
+            MergeParams(teammate_shift_m=bad)

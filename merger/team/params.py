@@ -142,8 +142,10 @@ class MergeParams:
         whole team's placement shrinks towards the center — consistent around every cycle, so no check of
         the team sees it (12 robots in an L room: each map 3–7 cm inwards, pairs across 10–16 cm off). The
         searches, local searches and checks use the moved cells; the merged map keeps the maps as given; a
-        map without a path, or whose path is no circle about the center, is left as it is. 0: off. Not
-        used when ``teammate_radius_m`` leaves the ring out.
+        map without a path, or whose path is no circle about the center, is left as it is. Not used when
+        ``teammate_radius_m`` leaves the ring out. 0 (the default): off — with it, four robots in a bare
+        hall (a team and a room that a half turn maps onto themselves) lost the faces' bias, the one cue
+        against the half turn, and three merges were 180° off (docs/experiments.md).
     """
 
     roi_m: float = DEFAULT_ROI_M

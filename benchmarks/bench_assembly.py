@@ -1,5 +1,7 @@
 """Benchmark: the team's consensus assembly (merger.team.consensus.assemble, issue 43) — each pair of clusters
-evaluated once per state against evaluating every pair afresh each round (the code before 2026-12-07).
+evaluated once per state against evaluating every pair afresh each round (the code before 2026-12-07), and
+the paths' conflict checks compiled (Paths.conflict, a numba kernel) against the same in numpy
+(Paths.conflict_reference, the code before 2026-12-07's sixth session).
 
 Run from the repository root::
 
@@ -8,8 +10,8 @@ Run from the repository root::
 
 Each team: N maps on a circle 360/N° apart (small translations), about half of all pairs measured (ν 0.5–0.9),
 a few of them wrong (a turn of 20–340°), and every robot's path (so that the paths' conflict checks run, as in
-the simulation). Printed per N: milliseconds per assembly both ways, their ratio, and whether the two gave the
-same assembly (placements, used measurements, rejections with reasons, left-out maps, joins).
+the simulation). Printed per N: milliseconds per assembly each way, the ratios, and whether they gave the same
+assembly (placements, used measurements, rejections with reasons, left-out maps, joins).
 """
 
 from __future__ import annotations
@@ -47,8 +49,11 @@ def team(n: int, seed: int = 1, density: float = 0.5, wrong: int = 3, steps: int
     return meas, names, paths
 
 
-def timed(n: int, meas, names, paths, once: bool, seconds: float):
+def timed(n: int, meas, names, paths, once: bool, seconds: float, compiled: bool = True):
     consensus._EVALUATE_ONCE = once
+    kernel = consensus.Paths.conflict
+    if not compiled:
+        consensus.Paths.conflict = consensus.Paths.conflict_reference
     try:
         out, k, t0 = None, 0, time.perf_counter()
         while k == 0 or time.perf_counter() - t0 < seconds:
@@ -57,6 +62,12 @@ def timed(n: int, meas, names, paths, once: bool, seconds: float):
         return (time.perf_counter() - t0) / k * 1e3, out
     finally:
         consensus._EVALUATE_ONCE = True
+        consensus.Paths.conflict = kernel
+
+
+def same(a, b) -> bool:
+    return (a.place == b.place and [m.label for m in a.used] == [m.label for m in b.used]
+            and a.rejected == b.rejected and a.left_out == b.left_out and a.joins == b.joins)
 
 
 def main() -> None:
@@ -64,16 +75,17 @@ def main() -> None:
     ap.add_argument("--sizes", default="8,16,32", metavar="N,N,...")
     ap.add_argument("--seconds", type=float, default=2.0, help="repeats per size and way (default 2 s)")
     args = ap.parse_args()
-    print("| maps | measurements | afresh each round (ms) | once per state (ms) | ratio | same assembly |")
-    print("|---|---|---|---|---|---|")
+    print("| maps | measurements | afresh, numpy checks (ms) | once, numpy checks (ms) | once, compiled checks (ms) "
+          "| once / afresh | compiled / numpy | same assembly |")
+    print("|---|---|---|---|---|---|---|---|")
     for n in (int(x) for x in args.sizes.split(",")):
         meas, names, paths = team(n)
-        fresh_ms, fresh = timed(n, meas, names, paths, False, args.seconds)
+        timed(n, meas, names, paths, True, 0.0)  # the kernel compiled (or loaded) before timing
+        fresh_ms, fresh = timed(n, meas, names, paths, False, args.seconds, compiled=False)
+        numpy_ms, by_numpy = timed(n, meas, names, paths, True, args.seconds, compiled=False)
         once_ms, once = timed(n, meas, names, paths, True, args.seconds)
-        same = (once.place == fresh.place and [m.label for m in once.used] == [m.label for m in fresh.used]
-                and once.rejected == fresh.rejected and once.left_out == fresh.left_out and once.joins == fresh.joins)
-        print(f"| {n} | {len(meas)} | {fresh_ms:.1f} | {once_ms:.1f} | {fresh_ms / once_ms:.2f}× | {same} |", flush=True)
-
+        print(f"| {n} | {len(meas)} | {fresh_ms:.1f} | {numpy_ms:.1f} | {once_ms:.1f} | {fresh_ms / numpy_ms:.2f}× "
+              f"| {numpy_ms / once_ms:.2f}× | {same(once, fresh) and same(once, by_numpy)} |", flush=True)
 
 if __name__ == "__main__":
     main()

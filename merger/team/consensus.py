@@ -42,6 +42,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..jit import njit
+
 SE2 = tuple[float, float, float]  # (θ degrees, tx, ty): y_to = t + R(θ)·y_from, centered coordinates
 IDENT: SE2 = (0.0, 0.0, 0.0)
 MIN_ROUTES = 2  # independent agreeing routes that join two clusters on their own
@@ -152,7 +154,25 @@ class Paths:
 
     def conflict(self, ka: list[int], kb: list[int], t_ab: SE2, names: list[str]) -> str:
         """Why placing the maps ``kb`` (placed in their cluster's frame) by ``t_ab`` into the frame of the
-        maps ``ka`` puts two robots in one place at the same time, or "" (:data:`TOUCH_M`, :data:`SEPARATION_M`)."""
+        maps ``ka`` puts two robots in one place at the same time, or "" (:data:`TOUCH_M`, :data:`SEPARATION_M`).
+        The compiled kernel :func:`_closest`; :meth:`conflict_reference` is the same in numpy (the tests
+        compare them)."""
+        if not self.active:
+            return ""
+        pa = self.placed[ka]
+        pb = _apply(t_ab, self.placed[kb])
+        found, dmin, ia, ib, it, close, ja, jb, n = _closest(pa, pb, SEPARATION_M, MIN_COMMON)
+        if not found:
+            return ""
+        if dmin < TOUCH_M:
+            return f"it places {names[ka[ia]]} and {names[kb[ib]]} {dmin:.2f} m apart at {float(self.t[it]):.1f} s"
+        if close > 0.5:
+            return (f"it places {names[ka[ja]]} and {names[kb[jb]]} within {SEPARATION_M:g} m of each other at "
+                    f"{close:.0%} of their {n} common instants")
+        return ""
+
+    def conflict_reference(self, ka: list[int], kb: list[int], t_ab: SE2, names: list[str]) -> str:
+        """:meth:`conflict` in numpy: every distance of every pair of robots at once."""
         if not self.active:
             return ""
         pa = self.placed[ka]
@@ -174,6 +194,38 @@ class Paths:
             return (f"it places {names[ka[ia]]} and {names[kb[ib]]} within {SEPARATION_M:g} m of each other at "
                     f"{close[ia, ib]:.0%} of their {int(n_common[ia, ib])} common instants")
         return ""
+
+
+@njit(cache=True, nogil=True)
+def _closest(pa, pb, separation, min_common):
+    """Over every robot a of ``pa`` (A, T, 2) and b of ``pb`` (B, T, 2) at their common instants (neither
+    NaN): whether any pair has one; the smallest distance, its pair (first in a-then-b order) and its first
+    instant; the largest share of common instants closer than ``separation`` among pairs with at least
+    ``min_common`` of them (0 otherwise), its pair (first) and that pair's common instants."""
+    n_a, n_t, n_b = pa.shape[0], pa.shape[1], pb.shape[0]
+    found = False
+    best, ia, ib, it = np.inf, 0, 0, 0
+    share, ja, jb, n_best = -1.0, 0, 0, 0
+    for a in range(n_a):
+        for b in range(n_b):
+            dmin, tmin, n, near = np.inf, 0, 0, 0
+            for t in range(n_t):
+                d = math.hypot(pa[a, t, 0] - pb[b, t, 0], pa[a, t, 1] - pb[b, t, 1])
+                if math.isnan(d):
+                    continue
+                n += 1
+                if d < dmin:
+                    dmin, tmin = d, t
+                if d < separation:
+                    near += 1
+            if n > 0:
+                found = True
+            if dmin < best:
+                best, ia, ib, it = dmin, a, b, tmin
+            c = near / max(n, 1) if n >= min_common else 0.0
+            if c > share:
+                share, ja, jb, n_best = c, a, b, n
+    return found, best, ia, ib, it, share, ja, jb, n_best
 
 
 def _apply(p: SE2, y: np.ndarray) -> np.ndarray:

@@ -87,7 +87,8 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float) -> MapInput:
     """``m`` with the occupied cells on its team's ring (:func:`ring`, margin 2·``shift_m``) moved ``shift_m``
     farther along the line of sight from its robot (the last point of its path: the faces a map holds are the
     ones its robot sees now, older ones are cleared as it passes): a teammate's face moved towards the
-    teammate's centreline; ``m`` itself when there is no ring or nothing on it."""
+    teammate's centreline; ``m`` itself when there is no ring or nothing on it. A static cell within the band
+    (an object closer to the circle than the band's margin) moves as well."""
     band = ring(m, 2 * shift_m, window_m)
     if band is None:
         return m

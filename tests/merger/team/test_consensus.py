@@ -208,3 +208,43 @@ def test_each_join_evaluated_once_gives_the_assembly_evaluated_afresh(n, seed, w
     assert once.place == fresh.place
     assert [m.label for m in once.used] == [m.label for m in fresh.used]
     assert once.rejected == fresh.rejected and once.left_out == fresh.left_out and once.joins == fresh.joins
+
+
+@settings(max_examples=150, deadline=None)
+@given(n_a=st.integers(1, 5), n_b=st.integers(1, 5), steps=st.integers(1, 30), seed=st.integers(0, 10_000),
+       spread=st.sampled_from([0.05, 0.3, 1.0, 3.0]), grid=st.booleans())
+def test_the_compiled_conflict_check_says_what_the_numpy_one_says(n_a, n_b, steps, seed, spread, grid):
+    """Paths.conflict (the compiled kernel) against Paths.conflict_reference (numpy) on random paths: robots
+    with partial, shifted or no common time, close and far, on a coarse lattice (ties in distance), placed
+    by random turns — the same sentence, to the character."""
+    rng = np.random.default_rng(seed)
+    trajs = []
+    for _ in range(n_a + n_b):
+        if rng.random() < 0.15:
+            trajs.append(None)
+            continue
+        t0 = float(rng.integers(0, 5)) * 0.5
+        t = t0 + 0.5 * np.arange(steps)
+        xy = rng.normal(0.0, spread, (steps, 2))
+        if grid:
+            xy = np.round(xy / 0.05) * 0.05
+        trajs.append(np.column_stack([t, xy]))
+    paths = Paths(trajs)
+    names = [f"R{k}" for k in range(n_a + n_b)]
+    ka, kb = list(range(n_a)), list(range(n_a, n_a + n_b))
+    for _ in range(3):
+        z = (float(rng.uniform(0, 360)), float(rng.normal(0, spread)), float(rng.normal(0, spread)))
+        assert paths.conflict(ka, kb, z, names) == paths.conflict_reference(ka, kb, z, names)
+    z = (0.0, 0.0, 0.0)
+    assert paths.conflict(ka, kb, z, names) == paths.conflict_reference(ka, kb, z, names)
+
+
+def test_the_compiled_conflict_check_says_each_of_its_three_answers_as_the_numpy_one():
+    """Two robots side by side 0.25 m apart (close at every instant), 0.05 m apart (touching), 2 m apart
+    (nothing): the kernel's sentence is numpy's each time."""
+    t = np.arange(10) * 0.5
+    for gap, says in ((0.25, "within"), (0.05, "m apart at"), (2.0, "")):
+        paths = Paths([np.column_stack([t, t * 0.1, 0 * t]), np.column_stack([t, t * 0.1, 0 * t + gap])])
+        got = paths.conflict([0], [1], (0.0, 0.0, 0.0), ["A", "B"])
+        assert got == paths.conflict_reference([0], [1], (0.0, 0.0, 0.0), ["A", "B"])
+        assert (says in got) if says else got == "", got

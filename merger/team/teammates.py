@@ -31,8 +31,9 @@ reference (pairs across the circle 10–16 cm off, neighbours within 3 cm). A te
 consistent around every cycle: no check of the assembly sees it. :func:`teammates_centred` therefore moves
 each ring cell a fixed distance along its robot's line of sight, towards the teammate's centre line, so that
 every map places the body alike (``MergeParams.teammate_shift_m``, 0.12 m for 0.18 m bodies): of those
-2 s maps' verified pairs, 9 of 23 were more than 5 cm off and 7 beyond the judge's tolerance, with it 1 of 21
-and 1; over 12 s (six versions), 27 of 239 and 11 against 9 of 230 and 5 (docs/experiments.md).
+2 s maps' verified pairs, 9 of 23 were more than 5 cm off, with it 1 of 21 (tests/merger/team/test_tree.py,
+``test_teammates_faces_moved_to_their_centre_lines_undo_the_teams_shrinking_in_the_l_room``; more in
+docs/experiments.md).
 
 The ring is used only when the path is one: its radii span at most twice the ring's margin (a circle
 about the center, up to the center error). A map without a trajectory, or whose robot wandered
@@ -64,6 +65,17 @@ def ring(m: MapInput, radius_m: float, window_m: float) -> tuple[float, float] |
     return max(lo - margin, 0.0), hi + margin
 
 
+def _on_ring(m: MapInput, band: tuple[float, float]):
+    """The map's cell centres (x per column, y per row, metres) and its occupied cells whose distance from
+    the map's center lies within ``band``."""
+    g = m.grid
+    h, w = g.states.shape
+    xs = g.origin[0] + (np.arange(w) + 0.5) * g.resolution
+    ys = g.origin[1] + (np.arange(h) + 0.5) * g.resolution
+    d2 = (xs[None, :] - m.center[0]) ** 2 + (ys[:, None] - m.center[1]) ** 2
+    return xs, ys, (d2 >= band[0] ** 2) & (d2 <= band[1] ** 2) & (g.states == OCCUPIED_S)
+
+
 def without_teammates(m: MapInput, radius_m: float, window_m: float) -> MapInput:
     """``m`` with the occupied cells on its team's ring (:func:`ring`) made unknown; ``m`` itself when
     there is no ring or nothing on it."""
@@ -71,11 +83,7 @@ def without_teammates(m: MapInput, radius_m: float, window_m: float) -> MapInput
     if band is None:
         return m
     g = m.grid
-    h, w = g.states.shape
-    xs = g.origin[0] + (np.arange(w) + 0.5) * g.resolution - m.center[0]
-    ys = g.origin[1] + (np.arange(h) + 0.5) * g.resolution - m.center[1]
-    d2 = xs[None, :] ** 2 + ys[:, None] ** 2
-    on = (d2 >= band[0] ** 2) & (d2 <= band[1] ** 2) & (g.states == OCCUPIED_S)
+    _, _, on = _on_ring(m, band)
     if not on.any():
         return m
     states = g.states.copy()
@@ -94,10 +102,7 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float) -> MapInput:
         return m
     g = m.grid
     h, w = g.states.shape
-    xs = g.origin[0] + (np.arange(w) + 0.5) * g.resolution
-    ys = g.origin[1] + (np.arange(h) + 0.5) * g.resolution
-    d2 = (xs[None, :] - m.center[0]) ** 2 + (ys[:, None] - m.center[1]) ** 2
-    on = (d2 >= band[0] ** 2) & (d2 <= band[1] ** 2) & (g.states == OCCUPIED_S)
+    xs, ys, on = _on_ring(m, band)
     if not on.any():
         return m
     rows, cols = np.nonzero(on)

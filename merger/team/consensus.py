@@ -22,7 +22,10 @@ hypotheses, each a separate search or witness. A join is made on the best group 
 * **one measurement is strong**: the only route between them, no rival, and its ν ≥ :func:`single_bar`
   — ν_min + :data:`SINGLE_MARGIN` · max(1, log2(H / 3)), a bar that grows with the number H of pairs the
   team tested (the more pairs tried, the more chances a wrong one has to pass ν: 0.55 for the 6 pairs of
-  four robots, 0.66 for 28, 0.77 for 120, 0.87 for 496);
+  four robots, 0.66 for 28, 0.77 for 120, 0.87 for 496), and the pair was not ambiguous (a pair whose
+  search had a rival within the margin, chosen between by whole-map ν, joins only with a second route:
+  four robots 90° apart in a bare rectangular hall — a team and a room a half turn maps onto themselves —
+  verified the half turn over the truth by ν 0.790 to 0.718, and one robot placed two teammates by it);
 
 and the join is **physically possible**: with trajectories (each map's robot path in its own frame,
 :class:`merger.team.params.MapInput`), no robot of A and robot of B are placed in the same place at the
@@ -82,13 +85,16 @@ def single_bar(nu_min: float, tested: int) -> float:
 
 @dataclass(frozen=True)
 class Measurement:
-    """A verified pair: map j placed onto map i (i < j), its ν and its name for the log."""
+    """A verified pair: map j placed onto map i (i < j), its ν and its name for the log. ``ambiguous``: the
+    pair's search had a rival within the margin and whole-map ν chose between them
+    (:mod:`merger.team.ambiguity`) — a choice between two hypotheses, not a lone measurement's evidence."""
 
     i: int
     j: int
     z: SE2
     nu: float
     label: str
+    ambiguous: bool = False
 
 
 @dataclass
@@ -341,14 +347,17 @@ def assemble(n: int, meas: list[Measurement], *, tested: int, nu_min: float, nam
         (routes, wsum, g), t_ab = possible[0]
         rival = max((sc[0] for sc, _ in possible[1:]), default=0)
         n_direct = sum(1 for h in g if h[3])
+        lone = routes == 1 and n_direct == 1
+        chosen = lone and any(m.ambiguous and m.label == g[0][2][0] for m in direct)  # over a rival, by ν
         if routes >= MIN_ROUTES and n_direct >= 1 and routes >= RIVAL_FACTOR * rival:
             evidence = f"{routes} agreeing routes ({n_direct} direct)" + (f", rival {rival}" if rival else "")
-        elif routes == 1 and n_direct == 1 and rival == 0 and len(direct) == 1 and g[0][1] >= bar:
+        elif lone and rival == 0 and len(direct) == 1 and g[0][1] >= bar and not chosen:
             evidence = f"one measurement, ν {g[0][1]:.3f} >= {bar:.3f} (H = {tested} pairs tested)"
         else:
             return (f"{routes} agreeing route(s) ({n_direct} direct)"
                     + (f" against {rival} placing it elsewhere" if rival else "")
-                    + (f"; a lone measurement needs ν >= {bar:.3f}" if n_direct == 1 and routes == 1 else ""))
+                    + ("; a lone ambiguous pair (chosen over its rival by whole-map ν) needs a second route"
+                       if chosen else f"; a lone measurement needs ν >= {bar:.3f}" if lone else ""))
         return routes, wsum, t_ab, possible, evidence
 
     ends = {m.label: (m.i, m.j) for m in meas}

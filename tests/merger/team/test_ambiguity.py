@@ -110,9 +110,14 @@ def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_tru
     assert a.best.score >= a.runner_up.score  # the ROI prefers the half turn ...
     assert a.runner_up.nu - a.best.nu >= 0.05  # ... the whole maps the truth
     assert pr.verification.passed and near(pr.alignment.theta_deg, theta, 0.5)
-    for res in (merge_team(maps, params), merge_tree(maps, params)):
-        assert res.accepted and near(res.chosen.theta_deg["Lyon"], theta, 0.5), res.reason
-        assert [x.verdict for x in res.ambiguous] == ["runner_up"]
+    orders = merge_team(maps, params)
+    assert orders.accepted and near(orders.chosen.theta_deg["Lyon"], theta, 0.5), orders.reason
+    assert [x.verdict for x in orders.ambiguous] == ["runner_up"]
+    # the tree takes the same verdict, but a pair chosen over its rival joins two maps only with a second
+    # route (merger.team.consensus): two maps have none, and the tree refuses with that reason
+    tree = merge_tree(maps, params)
+    assert [x.verdict for x in tree.ambiguous] == ["runner_up"] and near(tree.top.theta_deg["Lyon"], theta, 0.5)
+    assert not tree.accepted and "a lone ambiguous pair" in tree.reason, tree.reason
     # with the default support floor: the truth, directly (rotation only: the half turn's 47 cells are no
     # candidate) or through the rule (with the window a shifted half turn reaches the floor)
     floored = merge_team(maps, MergeParams(roi_m=4.0, window_m=window_m, ambiguity_margin=0.05))

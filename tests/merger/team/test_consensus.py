@@ -112,6 +112,28 @@ def test_a_lone_measurement_joins_only_above_a_bar_that_grows_with_the_pairs_tes
     assert set(assemble(2, strong, tested=120, nu_min=0.5, names=names).place) == {0}
 
 
+def test_a_lone_ambiguous_pair_joins_only_with_a_second_route():
+    """A pair whose search had a rival within the margin, chosen between by whole-map ν, is a choice between
+    two hypotheses: however high its ν it does not join two parts of a team alone (a half turn that a
+    symmetric team in a symmetric room verifies better than the truth); a second agreeing route joins them,
+    and the refusal names the rule."""
+    rng = np.random.default_rng(6)
+    truth = _truth(4, rng)
+    names = _names(4)
+    half = _meas(truth, 0, 2, 0.79, off=_cluster_off(truth, 0, 2, (180.0, 0.0, 0.0)), names=names)
+    inside = [_meas(truth, 0, 1, 0.7, names=names), _meas(truth, 2, 3, 0.7, names=names)]
+    plain = assemble(4, inside + [half], tested=6, nu_min=0.5, names=names)
+    assert set(plain.place) == {0, 1, 2, 3}  # not ambiguous: its ν clears the bar, the half turn is placed
+    assert apart(plain.place[2], truth[2])[0] > 170.0
+    chosen = Measurement(half.i, half.j, half.z, half.nu, half.label, ambiguous=True)
+    a = assemble(4, inside + [chosen], tested=6, nu_min=0.5, names=names)
+    assert set(a.place) == {0, 1} and "a lone ambiguous pair" in a.left_out[2] and "second route" in a.left_out[3]
+    # the truth's pair, ambiguous as well, with a second agreeing route (through map 1): joined, and right
+    right = [Measurement(0, 2, _meas(truth, 0, 2).z, 0.72, "R0|R2", ambiguous=True), _meas(truth, 1, 3, 0.6, names=names)]
+    b = assemble(4, inside + right, tested=6, nu_min=0.5, names=names)
+    assert set(b.place) == set(range(4)) and all(_placed_right(b, truth, k) for k in range(4))
+
+
 def _circle_paths(n, truth, radius=3.0, steps=20, dt=0.25):
     """Robots k driving one circle 360/n° apart, each path in its own map's centered coordinates."""
     out = []
@@ -156,17 +178,22 @@ def test_paths_without_common_instants_say_nothing():
 @settings(max_examples=60, deadline=None)
 @given(n=st.integers(4, 12), seed=st.integers(0, 10_000), wrong=st.integers(0, 3), density=st.floats(0.5, 1.0))
 def test_wrong_minority_measurements_never_move_a_placed_map(n, seed, wrong, density):
-    """Random teams, random subsets of true measurements and a few wrong ones (any rotation ≥ 20° off) whose
-    ν stays below the lone measurement's bar (a wrong pair above it is the risk the bar accepts): every
-    map placed is placed right — a wrong measurement joins nothing alone and cannot outvote the cycles."""
+    """Random teams, random subsets of true measurements and a few wrong ones (rotations ≥ 20° off, and
+    ≥ 20° from each other: independent wrong answers) whose ν stays below the lone measurement's bar (a
+    wrong pair above it is the risk the bar accepts, as two wrong pairs that agree are the risk of the two
+    routes' rule: drawn at random, two of map 0's three pairs once fell 6° and 0.2 m apart and placed the
+    team by them): every map placed is placed right — a wrong measurement joins nothing alone and cannot
+    outvote the cycles."""
     rng = np.random.default_rng(seed)
     truth = _truth(n, rng)
     names = _names(n)
     pairs = [(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < density]
     bad = set(map(tuple, rng.permutation(pairs)[:wrong])) if pairs else set()
-    meas = []
+    meas, k = [], 0
     for i, j in pairs:
-        off = (float(rng.uniform(20, 340)), *map(float, rng.uniform(-0.5, 0.5, 2))) if (i, j) in bad else (0, 0, 0)
+        off = (0, 0, 0)
+        if (i, j) in bad:  # the k-th wrong one in its own 90° band: 20-110°, 130-220°, 240-330°
+            off, k = (float(rng.uniform(20, 110)) + 110.0 * k, *map(float, rng.uniform(-0.5, 0.5, 2))), k + 1
         meas.append(_meas(truth, i, j, float(rng.uniform(0.5, 0.9)), off=off, names=names))
         if (i, j) in bad:
             meas[-1] = Measurement(i, j, meas[-1].z, single_bar(0.5, n * (n - 1) // 2) - 0.01, meas[-1].label)

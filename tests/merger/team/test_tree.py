@@ -353,6 +353,24 @@ def test_with_the_ring_left_out_a_bare_halls_slides_are_refused():
 
 
 @pytest.mark.slow
+def test_a_symmetric_team_in_a_bare_hall_is_not_placed_by_a_lone_half_turn():
+    """Generated floor plan 28 (a bare 6 x 11 m hall), four robots 90° apart, centers 0.15 m off, the
+    teammates' faces centred (``teammate_shift_m: 0.12``): a team and a room that a half turn maps onto
+    themselves. Whole-map ν chose a pair's half turn over the truth (0.790 against 0.718), and Lyon placed
+    two teammates by that one pair, 180° off (three gross false merges in 10 s). A pair chosen over its
+    rival joins two parts of a team only with a second route (merger.team.consensus): no gross merge, and
+    every robot merges."""
+    from circsim.config.scenario import bundled_scenarios, load_scenario
+    from circsim.sim import Simulation
+
+    sc = load_scenario(bundled_scenarios()["floorplan"]).with_overrides(
+        ["world.generate.seed=28", "center_error.magnitude_m=0.15", "duration_s=10", "merger.teammate_shift_m=0.12"])
+    res = Simulation(sc).run().to_dict()
+    assert res["gross_merges"] == 0, res["false_merge_log"][:3]
+    assert all(r["first_merge_s"] is not None for r in res["robots"].values())
+
+
+@pytest.mark.slow
 def test_teammates_faces_moved_to_their_centre_lines_undo_the_teams_shrinking_in_the_l_room():
     """The 12-robot L room (benchmarks/scenarios/lroom12.yaml), seed 1, the maps robot A holds at 1.9 s, truth
     as the robots' SLAM built them: with the teammates' faces as seen (``teammate_shift_m: 0``) the pairs

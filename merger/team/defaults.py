@@ -33,7 +33,13 @@ RESEARCH_DROP = 0.1  # ν of the local answer may fall this far below the last g
 # teammates were the only cue along the walls, and without them the pairs placed 18 maps grossly in 6 s (refused
 # since as translation ridges: no merge there in 8 s), and newuser5's seed 2 merged 3.1 s later
 TEAMMATE_RADIUS_M = 0.0
-TEAMMATE_SHIFT_M = 0.0
+# the faces moved to the teammates' centre lines (merger.team.teammates.teammates_centred): on by default since
+# the seventh pass of issue 43 (docs/experiments.md), once a pair chosen over its rival no longer joins parts
+# of a team alone (merger.team.consensus; the four-robot bare hall's half turns). Same invocation, defaults
+# before -> after, gross/other/drift-limited false merges: lroom12 30 s seeds 1-3 0/17/23, 0/18/21, 0/22/59 ->
+# 0/10/3, 0/5/15, 0/6/26; bare hall (plan 28, 10 s) 4/8/12 robots 0/12/5, 0/7/94, 25/33/130 -> 0/17/1, 0/3/60,
+# 0/20/176; hall4/hall8/newuser5 60 s x 3 seeds and hall16 30 s: 0 false either way
+TEAMMATE_SHIFT_M = 0.12
 
 
 @dataclass(frozen=True)

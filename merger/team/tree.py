@@ -30,7 +30,7 @@ With ``teammate_radius_m`` set (off by default), every pair sees its maps withou
 ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from opposite sides across the
 circle, bias the pairs); the merged map keeps them. A pair whose answer then lies on a translation ridge
 (:func:`merger.team.ambiguity.ridge`) is refused: with the teammates gone, two long walls may be all there is.
-With ``teammate_shift_m`` set instead (off by default), the ring's occupied cells are moved along each robot's
+With ``teammate_shift_m`` (0.12 m by default; when the ring is not left out), the ring's occupied cells are moved along each robot's
 line of sight towards the teammates' centre lines (:func:`merger.team.teammates.teammates_centred`): the
 faces seen from across the circle and from beside a teammate otherwise shrink the team's placement.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial

@@ -109,6 +109,8 @@ class Track:
     last: object = None  # the last result (used again while nothing calls for a new global search)
     anchor: tuple | None = None  # the placement the tracked answer was found at (a global search, or a local
     # one about the team's placement): the local re-verifications follow it only within SAME_HYPOTHESIS_*
+    chosen: object = None  # the ambiguity record of the global answer that set the anchor (whole-map ν chose it
+    # over a rival, merger.team.ambiguity): its local re-verifications follow a chosen hypothesis; None: none
     last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
     globals: int = 0
     locals: int = 0
@@ -218,6 +220,7 @@ def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, g
             if tr.placement is not None and not agree(g_place, tr.placement):
                 tracker.switched(key, tr, now, tr.placement, g_place)
             tr.tracked, tr.placement, tr.nu_ref, tr.candidate, tr.anchor = glob, g_place, nu_of(glob), None, g_place
+            tr.chosen = getattr(glob, "ambiguity", None)
         else:
             tr.tracked, tr.placement, tr.candidate = None, None, None
         return glob
@@ -236,4 +239,5 @@ def decide(tracker: Tracker, key: str, tr: Track, local, local_ok: bool, glob, g
     if tr.placement is not None and not agree(g_place, tr.placement):
         tracker.switched(key, tr, now, tr.placement, g_place)
     tr.tracked, tr.placement, tr.nu_ref, tr.candidate, tr.anchor = glob, g_place, nu_of(glob), None, g_place
+    tr.chosen = getattr(glob, "ambiguity", None)
     return glob

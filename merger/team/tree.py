@@ -30,8 +30,8 @@ With ``teammate_radius_m`` set (off by default), every pair sees its maps withou
 ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from opposite sides across the
 circle, bias the pairs); the merged map keeps them. A pair whose answer then lies on a translation ridge
 (:func:`merger.team.ambiguity.ridge`) is refused: with the teammates gone, two long walls may be all there is.
-With ``teammate_shift_m`` (0.12 m by default; when the ring is not left out), the ring's occupied cells are moved along each robot's
-line of sight towards the teammates' centre lines (:func:`merger.team.teammates.teammates_centred`): the
+With ``teammate_shift_m`` (0.12 m by default; when the ring is not left out), the ring's occupied cells
+are moved along each robot's line of sight towards the teammates' centre lines (:func:`merger.team.teammates.teammates_centred`): the
 faces seen from across the circle and from beside a teammate otherwise shrink the team's placement.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
 team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
@@ -42,6 +42,7 @@ placements, the loops, the adjustment, the bridges) is :mod:`merger.team.posegra
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -205,7 +206,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                 tr.locals += 1
                 if loc.verification.passed:
                     tr.tracked, tr.placement, tr.nu_ref = loc, _placement(loc), loc.verification.nu
-                    tr.anchor = tr.placement
+                    tr.anchor, tr.chosen = tr.placement, None
                     tracker.accepted(tr, tr.placement)
                 tr.last = loc
                 return loc
@@ -231,6 +232,8 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             tracker.searched(tr, sub, params.roi_m, now)
             out = decide(tracker, key, tr, local, local_ok, glob, glob.verification.passed, now, _placement,
                          lambda p: p.verification.nu, suspect)
+        if out is local and tr.chosen is not None:  # a hypothesis whole-map ν chose over a rival, followed:
+            out = dataclasses.replace(out, ambiguity=tr.chosen)  # still a choice (merger.team.consensus)
         if out.verification.passed:
             tracker.accepted(tr, _placement(out))
         tr.last = out

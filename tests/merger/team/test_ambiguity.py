@@ -127,6 +127,28 @@ def test_an_ambiguous_pair_that_whole_maps_separate_is_used_and_lands_on_the_tru
     assert not off.accepted and near(off.top.theta_deg["Lyon"], theta + 180.0, 1.0)
 
 
+def test_a_chosen_hypothesis_followed_locally_is_still_a_choice(pillars_in_an_offset_room):
+    """The tracker follows the tree's verified pairs with local searches, which have no runner-up: the
+    hypothesis whole-map ν chose over its rival stays a choice while it is followed (the track keeps the
+    ambiguity record), so a later cycle cannot join it alone where the first could not."""
+    import dataclasses
+
+    from merger.team.track import Tracker
+
+    maps, theta = pillars_in_an_offset_room
+    params = MergeParams(roi_m=4.0, window_m=0.5, ambiguity_margin=0.05, roi_min_support=0)
+    tracker = Tracker()
+    first = merge_tree(maps, params, tracker=tracker, now=0.0)
+    assert not first.accepted and [x.verdict for x in first.ambiguous] == ["runner_up"]
+    track = tracker.tracks["Auckland|Lyon"]
+    assert track.chosen is not None and (track.globals, track.locals) == (1, 0)
+    again = merge_tree([dataclasses.replace(m, version=2) for m in maps], params, tracker=tracker, now=1.0)
+    assert (track.globals, track.locals) == (1, 1)  # followed by a local search, not searched again
+    assert near(again.top.theta_deg["Lyon"], theta, 0.5)
+    assert not again.accepted and "a lone ambiguous pair" in again.reason, again.reason
+    assert [x.verdict for x in again.ambiguous] == ["runner_up"]
+
+
 def test_verdict_needs_the_margin_either_way():
     assert verdict(0.70, 0.64, 0.05) == "best"
     assert verdict(0.60, 0.66, 0.05) == "runner_up"

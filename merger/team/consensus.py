@@ -25,7 +25,8 @@ hypotheses, each a separate search or witness. A join is made on the best group 
   four robots, 0.66 for 28, 0.77 for 120, 0.87 for 496), and the pair was not ambiguous (a pair whose
   search had a rival within the margin, chosen between by whole-map ν, joins only with a second route:
   four robots 90° apart in a bare rectangular hall — a team and a room a half turn maps onto themselves —
-  verified the half turn over the truth by ν 0.790 to 0.718, and one robot placed two teammates by it);
+  verified the half turn over the truth by ν 0.790 to 0.718, and one robot placed two teammates by it; a
+  pair the tracker follows by local searches keeps the record of the choice, :func:`merger.team.tree.merge_tree`);
 
 and the join is **physically possible**: with trajectories (each map's robot path in its own frame,
 :class:`merger.team.params.MapInput`), no robot of A and robot of B are placed in the same place at the

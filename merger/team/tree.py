@@ -31,8 +31,9 @@ ring the team drives (:mod:`merger.team.teammates`: teammates' bodies, seen from
 circle, bias the pairs); the merged map keeps them. A pair whose answer then lies on a translation ridge
 (:func:`merger.team.ambiguity.ridge`) is refused: with the teammates gone, two long walls may be all there is.
 With ``teammate_shift_m`` (0.12 m by default; when the ring is not left out), the ring's occupied cells
-are moved along each robot's line of sight towards the teammates' centre lines (:func:`merger.team.teammates.teammates_centred`): the
-faces seen from across the circle and from beside a teammate otherwise shrink the team's placement.
+are moved along each robot's line of sight towards the teammates' centre lines
+(:func:`merger.team.teammates.teammates_centred`): the faces seen from across the circle and from beside a
+teammate otherwise shrink the team's placement.
 Maps that no verified pair links to map 0 are left out: the result places the maps it can (a partial
 team); the others are absent from its ``theta_deg``. Composition: with x_i = c_i + t_ij + R(θ_ij)(x_j − c_j) and
 x_0 = c_0 + t_0i + R(θ_0i)(x_i − c_i), map j lands at θ_0j = θ_0i + θ_ij, t_0j = t_0i + R(θ_0i)·t_ij.

@@ -31,8 +31,8 @@ reference (pairs across the circle 10–16 cm off, neighbours within 3 cm). A te
 consistent around every cycle: no check of the assembly sees it. :func:`teammates_centred` therefore moves
 each ring cell a fixed distance along its robot's line of sight, towards the teammate's centre line, so that
 every map places the body alike (``MergeParams.teammate_shift_m``, by default 0.12 m, for the bench's 0.18 m
-bodies): of those
-2 s maps' verified pairs, 9 of 23 were more than 5 cm off, with it 1 of 21 (tests/merger/team/test_tree.py,
+bodies): of those 2 s maps' verified pairs, 9 of 23 were more than 5 cm off, with it 1 of 21
+(tests/merger/team/test_tree.py,
 ``test_teammates_faces_moved_to_their_centre_lines_undo_the_teams_shrinking_in_the_l_room``; more in
 docs/experiments.md).
 

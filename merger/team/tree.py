@@ -252,7 +252,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     names = [m.name for m in maps]
     labels = {ij: f"{names[ij[0]]}|{names[ij[1]]}" for ij in pairs}
     meas = [Measurement(i, j, _se2(pair_placement(p, names, i, j)), p.verification.nu, labels[(i, j)],
-                        p.ambiguity is not None) for (i, j), p in pairs.items() if p.verification.passed]
+                        p.ambiguous) for (i, j), p in pairs.items() if p.verification.passed]
     team = assemble(len(maps), meas, tested=len(pairs), nu_min=params.nu_min, names=names,
                     trajectories=[_centered(m) for m in maps])
     kept = {ij: p for ij, p in pairs.items() if labels[ij] not in team.rejected}

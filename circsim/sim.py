@@ -240,6 +240,17 @@ class Simulation:
             for (r, trigger), res in zip(jobs, future.result(), strict=True):
                 self._judge(r, t, trigger, res)
 
+    @staticmethod
+    def _path_until(r: Robot, t: float) -> np.ndarray:
+        """The path a map message carries: the robot's kept poses and, when the last is older, its pose
+        estimate at the map's instant ``t`` (as a ROS robot's tf at the map's stamp): the path's last row is
+        the instant the map shows (merger.team.teammates.map_time)."""
+        path = np.array(r.path, np.float64)
+        if path[-1, 0] < t - 1e-9:
+            est = r.slam.estimated_pose()
+            path = np.vstack([path, [t, est.x, est.y]])
+        return path
+
     def _est_in_world(self, name: str, est) -> tuple[float, float, float]:
         s = self.start_poses[name]
         c, si = math.cos(s.yaw), math.sin(s.yaw)
@@ -250,7 +261,7 @@ class Simulation:
         for n, r in self.robots.items():
             if t + eps >= r.next_publish_s and r.slam.updates:
                 r.next_publish_s += self.scenario.slam.publish_period_s
-                msg = MapMessage(n, t, r.slam.grid(), r.center_given, np.array(r.path, np.float64))
+                msg = MapMessage(n, t, r.slam.grid(), r.center_given, self._path_until(r, t))
                 self.map_frames[n][t] = tuple(r.slam.map_frame_estimate())
                 r.merger.receive(msg)
                 r.inbox_new.append(n)

@@ -249,7 +249,7 @@ def whole_map_guard(maps: list[MapInput], order: tuple[int, ...], params: MergeP
 
 
 def refine_chosen(maps: list[MapInput], place: dict[int, Placement], warps: Warps, params: MergeParams,
-                  chosen: OrderResult) -> tuple[OrderResult, dict[int, Placement]]:
+                  chosen: OrderResult, keep: frozenset[int] = frozenset()) -> tuple[OrderResult, dict[int, Placement]]:
     """The accepted placements refined on the whole maps (``params.refine_whole``; otherwise unchanged).
 
     ``place``: (θ, t) onto map 0 per index of ``maps``. A placed map k ≥ 1 that some check of ``chosen``
@@ -259,11 +259,13 @@ def refine_chosen(maps: list[MapInput], place: dict[int, Placement], warps: Warp
     checks the thesis's ν passed keeps the search's placement: its maps agree cell by cell, and the search's
     cell-exact optimum is finer than the tolerant fit (on the simulator's maps the fit moved a placement
     14 cm, beyond the bench's 10 cm). The result carries the refined placement and the search's beside it
-    (``search_theta_deg``, ``search_translation_m``); its checks stay those of the search's placement."""
+    (``search_theta_deg``, ``search_translation_m``); its checks stay those of the search's placement.
+    ``keep``: indices of maps whose placement cell-exact evidence holds whatever the checks (the tree: a map
+    with a consistent pair the thesis's ν passed): kept as well."""
     if not params.refine_whole or not params.verification_rule.whole_maps or len(place) < 2:
         return chosen, place
     names = {k: maps[k].name for k in place}
-    todo = [k for k in place if k != 0 and any(v.contrast is not None and v.passed for pair, v in chosen.checks.items()
+    todo = [k for k in place if k != 0 and k not in keep and any(v.contrast is not None and v.passed for pair, v in chosen.checks.items()
                                                if names[k] in pair.split("|"))]
     if not todo:
         return chosen, place

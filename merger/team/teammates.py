@@ -36,6 +36,15 @@ bodies): of those 2 s maps' verified pairs, 9 of 23 were more than 5 cm off, wit
 ``test_teammates_faces_moved_to_their_centre_lines_undo_the_teams_shrinking_in_the_l_room``; more in
 docs/experiments.md).
 
+The bodies move: the robots publish their maps at their own phases, so two maps hold the team at
+different places on its ring. Compared as they are, the bodies turn the pair's rotation the team's way
+(12-robot L room, seed 1, the maps robot K held at 1.8 s, published 0.2–0.9 s before its own: every
+verified pair +1.1° to +3.1° off, whole-map ν peaking 2° from the truth, and 5–10 false merges 2–3° off
+in the first 5 s). With ``until``, :func:`teammates_centred` moves the bodies on to a later instant, as
+far round the center as the map's own robot turns in that time (:func:`angular_speed`): the team drives
+its circle together. :func:`merger.team.tree.at_one_instant` moves the older map of a pair on to the
+newer one's instant (those pairs then within ±1.2°, tests/merger/team/test_tree.py).
+
 The ring is used only when the path is one: its radii span at most twice the ring's margin (a circle
 about the center, up to the center error). A map without a trajectory, or whose robot wandered
 (a real map of an independent run), is left as it is. Pure: arrays in, arrays out.
@@ -92,12 +101,19 @@ def without_teammates(m: MapInput, radius_m: float, window_m: float) -> MapInput
     return dataclasses.replace(m, grid=OccupancyGrid(states, g.resolution, g.origin))
 
 
-def teammates_centred(m: MapInput, shift_m: float, window_m: float) -> MapInput:
+def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float | None = None) -> MapInput:
     """``m`` with the occupied cells on its team's ring (:func:`ring`, margin 2·``shift_m``) moved ``shift_m``
     farther along the line of sight from its robot (the last point of its path: the faces a map holds are the
     ones its robot sees now, older ones are cleared as it passes): a teammate's face moved towards the
     teammate's centreline; ``m`` itself when there is no ring or nothing on it. A static cell within the band
-    (an object closer to the circle than the band's margin) moves as well."""
+    (an object closer to the circle than the band's margin) moves as well.
+
+    ``until`` (seconds, on the paths' clock; later than the map's time, its path's last row): the bodies
+    moved on to where they stand then — turned about the center as far as the map's own robot turns in that
+    time at its angular speed (:func:`angular_speed`): the team drives its circle together. Two maps of
+    different instants hold the team at different places on the ring; compared as they are, the pair's
+    rotation follows the bodies (the 12-robot L room's maps 0.2–0.9 s apart: +1.1° to +3.1°, all one
+    way)."""
     band = ring(m, 2 * shift_m, window_m)
     if band is None:
         return m
@@ -110,10 +126,36 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float) -> MapInput:
     seen_from = np.asarray(m.trajectory, np.float64)[-1, 1:3]  # where the robot is as it sends the map
     qx, qy = xs[cols] - seen_from[0], ys[rows] - seen_from[1]
     k = shift_m / np.maximum(np.hypot(qx, qy), 1e-9)
-    to_c = np.floor((xs[cols] + k * qx - g.origin[0]) / g.resolution).astype(np.int64)
-    to_r = np.floor((ys[rows] + k * qy - g.origin[1]) / g.resolution).astype(np.int64)
+    px, py = xs[cols] + k * qx, ys[rows] + k * qy
+    if until is not None and until > m.trajectory[-1, 0]:
+        a = angular_speed(m) * (until - float(m.trajectory[-1, 0]))
+        ca, sa = np.cos(a), np.sin(a)
+        dx, dy = px - m.center[0], py - m.center[1]
+        px, py = m.center[0] + ca * dx - sa * dy, m.center[1] + sa * dx + ca * dy
+    to_c = np.floor((px - g.origin[0]) / g.resolution).astype(np.int64)
+    to_r = np.floor((py - g.origin[1]) / g.resolution).astype(np.int64)
     inside = (to_c >= 0) & (to_c < w) & (to_r >= 0) & (to_r < h)
     states = g.states.copy()
     states[on] = UNKNOWN_S
     states[to_r[inside], to_c[inside]] = OCCUPIED_S
     return dataclasses.replace(m, grid=OccupancyGrid(states, g.resolution, g.origin))
+
+
+def angular_speed(m: MapInput) -> float:
+    """How fast the map's robot turns about the map's center, rad/s, counter-clockwise positive: over the last
+    second of its path (0 without a path or before it moves)."""
+    tr = m.trajectory
+    if tr is None or len(tr) < 2:
+        return 0.0
+    k = max(int(np.searchsorted(tr[:, 0], tr[-1, 0] - 1.0, side="right")) - 1, 0)
+    dt = float(tr[-1, 0] - tr[k, 0])
+    if dt <= 0:
+        return 0.0
+    a0 = np.arctan2(tr[k, 2] - m.center[1], tr[k, 1] - m.center[0])
+    a1 = np.arctan2(tr[-1, 2] - m.center[1], tr[-1, 1] - m.center[0])
+    return float((a1 - a0 + np.pi) % (2 * np.pi) - np.pi) / dt
+
+
+def map_time(m: MapInput) -> float | None:
+    """The instant a map shows (its path's last row), or None without a path."""
+    return None if m.trajectory is None or len(m.trajectory) == 0 else float(m.trajectory[-1, 0])

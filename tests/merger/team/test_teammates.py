@@ -175,3 +175,47 @@ def test_the_shift_is_checked():
     for bad in (-0.1, math.nan, True, 2.0):
         with pytest.raises(ValueError, match="teammate_shift_m"):
             MergeParams(teammate_shift_m=bad)
+
+
+@pytest.mark.parametrize("arc_deg", [40.0, -40.0])
+def test_moved_on_in_time_a_teammates_face_turns_about_the_center_as_the_robot_does(arc_deg):
+    """``until`` later than the map's instant: the centred face turns about the center as far as the map's
+    robot turns in that time (the team drives its circle together), either way round; at the map's own
+    instant (or earlier) nothing more moves."""
+    from merger.team.teammates import angular_speed, teammates_centred
+
+    center = np.array([3.0, 3.0])
+    body = center + 2.0 * np.array([math.cos(1.0), math.sin(1.0)])
+    path = _circle_path(2.0, tuple(center), arc_deg=arc_deg, start_deg=200.0)  # 20 rows, 0.1 s apart
+    states = np.full((120, 120), FREE_S, np.uint8)
+    face = _face(states.shape, body, path[-1, 1:3])
+    states[face] = OCCUPIED_S
+    m = _map(states, tuple(center), path)
+    omega = angular_speed(m)
+    assert omega == pytest.approx(math.radians(arc_deg) / 1.9, rel=1e-9)
+    now = teammates_centred(m, 0.09, 0.5)
+    assert (teammates_centred(m, 0.09, 0.5, float(path[-1, 0])).grid.states == now.grid.states).all()
+    assert (teammates_centred(m, 0.09, 0.5, 0.5).grid.states == now.grid.states).all()
+    later = teammates_centred(m, 0.09, 0.5, float(path[-1, 0]) + 0.8)
+
+    def bearing(g):
+        c = _centroid(g.states == OCCUPIED_S) - center
+        return math.atan2(c[1], c[0])
+    turned = (bearing(later.grid) - bearing(now.grid) + math.pi) % (2 * math.pi) - math.pi
+    assert math.degrees(turned) == pytest.approx(math.degrees(omega * 0.8), abs=math.degrees(RES / 2.0))
+    assert (states[face] == OCCUPIED_S).all()  # the caller's map is not written
+
+
+def test_the_angular_speed_is_the_paths_last_second_about_the_center():
+    from merger.team.teammates import angular_speed, map_time
+
+    center = (3.0, 3.0)
+    slow = _circle_path(2.0, center, arc_deg=5.0, n=11)  # 1 s, 5°
+    fast = _circle_path(2.0, center, arc_deg=30.0, n=21, start_deg=5.0)[1:]  # 2 s more, 30°
+    fast[:, 0] += 1.0
+    path = np.r_[slow, fast]
+    assert angular_speed(_map(np.zeros((120, 120), np.uint8), center, path)) == pytest.approx(math.radians(15.0))
+    assert angular_speed(_map(np.zeros((120, 120), np.uint8), center, path[:1])) == 0.0  # not yet moved
+    assert angular_speed(_map(np.zeros((120, 120), np.uint8), center)) == 0.0  # no path
+    assert map_time(_map(np.zeros((120, 120), np.uint8), center, path)) == pytest.approx(3.0)
+    assert map_time(_map(np.zeros((120, 120), np.uint8), center)) is None

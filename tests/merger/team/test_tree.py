@@ -419,3 +419,88 @@ def test_teammates_faces_moved_to_their_centre_lines_undo_the_teams_shrinking_in
     assert sum(d > 0.05 for d in seen) >= 5 and sum(d > 0.10 for d in seen) >= 4, sorted(seen)
     assert sum(d > 0.05 for d in moved) <= 1, sorted(moved)
     assert len(moved) >= len(seen) - 3
+
+
+@pytest.mark.slow
+def test_a_pair_of_two_instants_compares_the_teammates_at_one_in_the_l_room():
+    """The 12-robot L room (benchmarks/scenarios/lroom12.yaml), seed 1: the maps robot K holds at 1.8 s were
+    published up to 1.5 s apart (the robots' random publish phases) while the team drives its circle at
+    about 4.8°/s. Compared where each map holds them, the teammates' bodies turn every verified pair's
+    rotation the same way (truth as the robots' SLAM built the maps): one pair beyond the judge's 2°, on
+    average more than 1°. With the older map's teammates moved on to the newer map's instant
+    (merger.team.tree.at_one_instant) every verified pair lies within 1.5° and no more than two fewer verify."""
+    from circsim.config.scenario import load_scenario
+    from circsim.sim import Simulation, estimated_truth
+    from merger.team.frames import Warps
+    from merger.team.teammates import teammates_centred
+    from merger.team.tree import at_one_instant, pair_result
+    from tests.paths import REPO
+
+    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
+        ["duration_s=1.85", "seed=1"])
+    sim, held = Simulation(sc), {}
+    judge = sim._judge
+
+    def keep(r, t, trigger, res, adopted_from=""):
+        if r.name == "K" and t >= 1.8 and not held:
+            held["inputs"] = r.merger.inputs()
+            held["frames"] = {k: sim.map_frames[k][r.merger.maps[k].stamp] for k in r.merger.maps}
+        return judge(r, t, trigger, res, adopted_from)
+    sim._judge = keep
+    sim.run()
+    inputs, frames = held["inputs"], held["frames"]
+    params = MergeParams()
+    times = [m.trajectory[-1, 0] for m in inputs]
+    assert inputs[0].name == "K" and len(inputs) >= 10 and max(times) - min(times) >= 1.0
+
+    def off_by(two_of):
+        out = {}
+        for j in range(1, len(inputs)):
+            two = two_of(inputs[0], inputs[j])
+            p = pair_result(two, 0, 1, params, Warps(two))
+            if p.verification.passed:
+                th, _ = estimated_truth(frames["K"], frames[inputs[j].name], inputs[0].center, inputs[j].center)
+                out[inputs[j].name] = angle_diff_deg(p.alignment.theta_deg, th)
+        return out
+
+    def as_held(a, b):
+        return [teammates_centred(m, params.teammate_shift_m, params.window_m) for m in (a, b)]
+    seen = off_by(as_held)
+    moved = off_by(lambda a, b: list(at_one_instant(a, b, params)))
+    assert max(abs(e) for e in seen.values()) > 2.0 and abs(np.mean(list(seen.values()))) > 1.0, seen
+    assert len({np.sign(e) for e in seen.values()}) == 1, seen
+    assert max(abs(e) for e in moved.values()) <= 1.5, moved
+    assert len(moved) >= len(seen) - 2, (seen, moved)
+
+
+@pytest.mark.slow
+def test_a_map_held_by_a_cell_exact_pair_keeps_its_placement_in_the_l_room():
+    """The 12-robot L room, seed 2, robot C's cycle at 4.1 s: map I's pairs are all within 5 cm and 0.4° of the
+    truth as SLAM built the maps, and the team placed it within 1 cm; its tree edge passed by the contrast
+    rule, and the whole-map refinement (the tolerant fit, a 1° × 0.1 m scan) moved it 1.0° and 10.4 cm — a
+    false merge. A map with a consistent pair whose maps agree cell by cell (the thesis's ν passed) keeps
+    the placement: every such map's refined placement is its search's, and I is within 2 cm and 0.2°."""
+    from circsim.config.scenario import load_scenario
+    from circsim.sim import Simulation, estimated_truth
+    from tests.paths import REPO
+
+    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
+        ["duration_s=4.15", "seed=2"])
+    sim, held = Simulation(sc), {}
+    judge = sim._judge
+
+    def keep(r, t, trigger, res, adopted_from=""):
+        if r.name == "C" and t >= 4.1 and not held:
+            held["inputs"] = r.merger.inputs()
+            held["frames"] = {k: sim.map_frames[k][r.merger.maps[k].stamp] for k in r.merger.maps}
+        return judge(r, t, trigger, res, adopted_from)
+    sim._judge = keep
+    sim.run()
+    inputs, frames = held["inputs"], held["frames"]
+    res = merge_tree(inputs, MergeParams())
+    top = res.orders[0]
+    assert res.chosen is not None and "I" in top.theta_deg
+    th, t = estimated_truth(frames["C"], frames["I"], inputs[0].center, inputs[[m.name for m in inputs].index("I")].center)
+    assert abs(angle_diff_deg(top.theta_deg["I"], th)) < 0.2
+    assert math.dist(top.translation_m["I"], t) < 0.02
+    assert top.search_theta_deg and top.theta_deg["I"] == top.search_theta_deg["I"]

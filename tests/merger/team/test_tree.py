@@ -429,26 +429,12 @@ def test_a_pair_of_two_instants_compares_the_teammates_at_one_in_the_l_room():
     rotation the same way (truth as the robots' SLAM built the maps): one pair beyond the judge's 2°, on
     average more than 1°. With the older map's teammates moved on to the newer map's instant
     (merger.team.tree.at_one_instant) every verified pair lies within 1.5° and no more than two fewer verify."""
-    from circsim.config.scenario import load_scenario
-    from circsim.sim import Simulation, estimated_truth
+    from circsim.sim import estimated_truth
     from merger.team.frames import Warps
     from merger.team.teammates import teammates_centred
     from merger.team.tree import at_one_instant, pair_result
-    from tests.paths import REPO
 
-    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
-        ["duration_s=1.85", "seed=1"])
-    sim, held = Simulation(sc), {}
-    judge = sim._judge
-
-    def keep(r, t, trigger, res, adopted_from=""):
-        if r.name == "K" and t >= 1.8 and not held:
-            held["inputs"] = r.merger.inputs()
-            held["frames"] = {k: sim.map_frames[k][r.merger.maps[k].stamp] for k in r.merger.maps}
-        return judge(r, t, trigger, res, adopted_from)
-    sim._judge = keep
-    sim.run()
-    inputs, frames = held["inputs"], held["frames"]
+    inputs, frames = _l_room_held_by("K", 1.8, seed=1)
     params = MergeParams()
     times = [m.trajectory[-1, 0] for m in inputs]
     assert inputs[0].name == "K" and len(inputs) >= 10 and max(times) - min(times) >= 1.0
@@ -480,23 +466,9 @@ def test_a_map_held_by_a_cell_exact_pair_keeps_its_placement_in_the_l_room():
     rule, and the whole-map refinement (the tolerant fit, a 1° × 0.1 m scan) moved it 1.0° and 10.4 cm — a
     false merge. A map with a consistent pair whose maps agree cell by cell (the thesis's ν passed) keeps
     the placement: every such map's refined placement is its search's, and I is within 2 cm and 0.2°."""
-    from circsim.config.scenario import load_scenario
-    from circsim.sim import Simulation, estimated_truth
-    from tests.paths import REPO
+    from circsim.sim import estimated_truth
 
-    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
-        ["duration_s=4.15", "seed=2"])
-    sim, held = Simulation(sc), {}
-    judge = sim._judge
-
-    def keep(r, t, trigger, res, adopted_from=""):
-        if r.name == "C" and t >= 4.1 and not held:
-            held["inputs"] = r.merger.inputs()
-            held["frames"] = {k: sim.map_frames[k][r.merger.maps[k].stamp] for k in r.merger.maps}
-        return judge(r, t, trigger, res, adopted_from)
-    sim._judge = keep
-    sim.run()
-    inputs, frames = held["inputs"], held["frames"]
+    inputs, frames = _l_room_held_by("C", 4.1, seed=2)
     res = merge_tree(inputs, MergeParams())
     top = res.orders[0]
     assert res.chosen is not None and "I" in top.theta_deg
@@ -504,3 +476,25 @@ def test_a_map_held_by_a_cell_exact_pair_keeps_its_placement_in_the_l_room():
     assert abs(angle_diff_deg(top.theta_deg["I"], th)) < 0.2
     assert math.dist(top.translation_m["I"], t) < 0.02
     assert top.search_theta_deg and top.theta_deg["I"] == top.search_theta_deg["I"]
+
+
+def _l_room_held_by(robot: str, at_s: float, seed: int):
+    """The maps ``robot`` holds in its first merge cycle at or after ``at_s`` in the 12-robot L room
+    (benchmarks/scenarios/lroom12.yaml, defaults), and every held map's frame as its SLAM built it then."""
+    from circsim.config.scenario import load_scenario
+    from circsim.sim import Simulation
+    from tests.paths import REPO
+
+    sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
+        [f"duration_s={at_s + 0.05:g}", f"seed={seed}"])
+    sim, held = Simulation(sc), {}
+    judge = sim._judge
+
+    def keep(r, t, trigger, res, adopted_from=""):
+        if r.name == robot and t >= at_s and not held:
+            held["inputs"] = r.merger.inputs()
+            held["frames"] = {k: sim.map_frames[k][r.merger.maps[k].stamp] for k in r.merger.maps}
+        return judge(r, t, trigger, res, adopted_from)
+    sim._judge = keep
+    sim.run()
+    return held["inputs"], held["frames"]

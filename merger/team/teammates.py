@@ -39,7 +39,7 @@ docs/experiments.md).
 The bodies move: the robots publish their maps at their own phases, so two maps hold the team at
 different places on its ring. Compared as they are, the bodies turn the pair's rotation the team's way
 (12-robot L room, seed 1, the maps robot K held at 1.8 s, published 0.2–0.9 s before its own: every
-verified pair +1.1° to +3.1° off, whole-map ν peaking 2° from the truth, and 5–10 false merges 2–3° off
+verified pair +1.0° to +3.1° off, whole-map ν peaking 2° from the truth, and 5–10 false merges 2–3° off
 in the first 5 s). With ``until``, :func:`teammates_centred` moves the bodies on to a later instant, as
 far round the center as the map's own robot turns in that time (:func:`angular_speed`): the team drives
 its circle together. :func:`merger.team.tree.at_one_instant` moves the older map of a pair on to the
@@ -112,7 +112,7 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float
     moved on to where they stand then — turned about the center as far as the map's own robot turns in that
     time at its angular speed (:func:`angular_speed`): the team drives its circle together. Two maps of
     different instants hold the team at different places on the ring; compared as they are, the pair's
-    rotation follows the bodies (the 12-robot L room's maps 0.2–0.9 s apart: +1.1° to +3.1°, all one
+    rotation follows the bodies (the 12-robot L room's maps 0.2–0.9 s apart: +1.0° to +3.1°, all one
     way)."""
     band = ring(m, 2 * shift_m, window_m)
     if band is None:

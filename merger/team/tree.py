@@ -350,7 +350,7 @@ def at_one_instant(a: MapInput, b: MapInput, params: MergeParams, memo: Memo | N
     last rows; :func:`merger.team.teammates.teammates_centred`). The robots publish their maps at their own
     phases: in the 12-robot L room the maps a robot held at 1.8 s were up to 1.7 s apart while the team
     drove its circle at 4.8°/s, and compared where each map held them the bodies turned every pair's
-    rotation one way (+1.1° to +3.1°; with them moved on, within ±1.2°)."""
+    rotation one way (+1.0° to +3.1°; with them moved on, within ±1.2°)."""
     ta, tb = map_time(a), map_time(b)
     if _no_ring_time(params) or ta is None or tb is None:
         return _seen_one(a, params, memo), _seen_one(b, params, memo)
@@ -378,8 +378,8 @@ def _seen_one(m: MapInput, params: MergeParams, memo: Memo | None, until: float 
         return m
     if memo is None or m.trajectory is None or extra:
         return how(m, arg, params.window_m, *extra)
-    return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m, *extra),
-                    lambda: how(m, arg, params.window_m, *extra))
+    return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m),
+                    lambda: how(m, arg, params.window_m))
 
 
 def _se2(p: Placement) -> SE2:

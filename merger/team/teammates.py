@@ -43,7 +43,7 @@ verified pair +1.0° to +3.1° off, whole-map ν peaking 2° from the truth, and
 in the first 5 s). With ``until``, :func:`teammates_centred` moves the bodies on to a later instant, as
 far round the center as the map's own robot turns in that time (:func:`angular_speed`): the team drives
 its circle together. :func:`merger.team.tree.at_one_instant` moves the older map of a pair on to the
-newer one's instant (those pairs then within ±1.2°, tests/merger/team/test_tree.py).
+newer one's instant (those pairs then within ±1.2°; tests/merger/team/test_tree.py bounds them by 1.5°).
 
 The ring is used only when the path is one: its radii span at most twice the ring's margin (a circle
 about the center, up to the center error). A map without a trajectory, or whose robot wandered
@@ -127,8 +127,8 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float
     qx, qy = xs[cols] - seen_from[0], ys[rows] - seen_from[1]
     k = shift_m / np.maximum(np.hypot(qx, qy), 1e-9)
     px, py = xs[cols] + k * qx, ys[rows] + k * qy
-    if until is not None and until > m.trajectory[-1, 0]:
-        a = angular_speed(m) * (until - float(m.trajectory[-1, 0]))
+    if until is not None and until > map_time(m):
+        a = angular_speed(m) * (until - map_time(m))
         ca, sa = np.cos(a), np.sin(a)
         dx, dy = px - m.center[0], py - m.center[1]
         px, py = m.center[0] + ca * dx - sa * dy, m.center[1] + sa * dx + ca * dy

@@ -125,15 +125,19 @@ class BeyondQuery:
     Is there a coarse alignment outside the problem's translation window (within the guard's wider
     ring) that scores above ``best_value`` and lies apart from the grid ``answer`` = (coarse θ°, (a, b)
     cells)? ``guard`` answers it: :func:`beyond_window` (the branch and bound) or :func:`reference_beyond`
-    (exhaustive), or any function with their signature.
+    (exhaustive), or any function with their signature. ``problem_of`` (instead of ``problem``): a function
+    that builds the problem again when the question is answered, so that a question kept unanswered does
+    not keep its problem's grids (:meth:`merger.search.problem.Alignment.guard_rebuilding`).
     """
 
     problem: object
     best_value: float
     answer: tuple
     guard: Callable = beyond_window
+    problem_of: Callable | None = None  # builds ``problem`` when asked (then ``problem`` is None)
 
     def answer_now(self) -> tuple[float, tuple[float, float], float] | None:
         """Run the guard: ``(θ°, (tx, ty) m, coarse score)`` or None."""
-        b = self.guard(self.problem, self.best_value, self.answer)
+        problem = self.problem if self.problem_of is None else self.problem_of()
+        b = self.guard(problem, self.best_value, self.answer)
         return None if b is None else (float(b[0]), (float(b[1][0]), float(b[1][1])), float(b[2]))

@@ -161,7 +161,13 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         if _no_ring_time(params) or map_time(given[r]) == map_time(given[m]):
             return pair_result(maps, r, m, params, warps, around)
         two = list(at_one_instant(given[r], given[m], params, memo))
-        return pair_result(two, 0, 1, params, Warps(two), around)
+        res = pair_result(two, 0, 1, params, Warps(two), around)
+
+        def problem_of():  # the pair's problem again: its moved map is the pair's own grid, not kept
+            a, b = at_one_instant(given[r], given[m], params, memo)
+            return problem_for(a.grid, a.center, b, params)
+
+        return dataclasses.replace(res, alignment=res.alignment.guard_rebuilding(problem_of))
 
     pairs: dict[tuple[int, int], PairResult] = {}
     live = set()

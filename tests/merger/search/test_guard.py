@@ -124,3 +124,22 @@ def test_an_alignment_answers_its_guard_lazily_and_once(view):
     # the default guard: the fast search's own question answered by beyond_window
     theta, t, score = al.beyond
     assert abs(angle_diff_deg(theta, 0.0)) <= 1.0 and np.allclose(t, off) and score == 1.0
+
+
+def test_a_guard_rebuilding_its_problem_answers_as_the_one_that_kept_it(view):
+    """Alignment.guard_rebuilding: the unanswered guard keeps no problem (no grid) and asks for it once,
+    when answered; its answer is the kept problem's. An answered guard is kept as it is."""
+    p, _ = _shifted(view, (4, 0), 0.1)
+    kept, light = fast_search(p), fast_search(p)
+    built = []
+
+    def problem_of():
+        built.append(1)
+        return dataclasses.replace(p, ref=dataclasses.replace(p.ref), moving=dataclasses.replace(p.moving))
+
+    light = light.guard_rebuilding(problem_of)
+    assert light.beyond_query.problem is None and built == []
+    assert light.theta_deg == kept.theta_deg and light.cells == kept.cells
+    assert light.beyond == kept.beyond and kept.beyond is not None
+    assert light.beyond == kept.beyond and built == [1]
+    assert kept.guard_rebuilding(problem_of) is kept  # answered: nothing left to ask

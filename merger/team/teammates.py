@@ -101,7 +101,8 @@ def without_teammates(m: MapInput, radius_m: float, window_m: float) -> MapInput
     return dataclasses.replace(m, grid=OccupancyGrid(states, g.resolution, g.origin))
 
 
-def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float | None = None) -> MapInput:
+def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float | None = None,
+                      faces: Faces | None = None) -> MapInput:
     """``m`` with the occupied cells on its team's ring (:func:`ring`, margin 2·``shift_m``) moved ``shift_m``
     farther along the line of sight from its robot (the last point of its path: the faces a map holds are the
     ones its robot sees now, older ones are cleared as it passes): a teammate's face moved towards the
@@ -113,20 +114,13 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float
     time at its angular speed (:func:`angular_speed`): the team drives its circle together. Two maps of
     different instants hold the team at different places on the ring; compared as they are, the pair's
     rotation follows the bodies (the 12-robot L room's maps 0.2–0.9 s apart: +1.0° to +3.1°, all one
-    way)."""
-    band = ring(m, 2 * shift_m, window_m)
-    if band is None:
+    way). ``faces``: :func:`centred_faces` of the same map and settings, computed once for every instant."""
+    f = centred_faces(m, shift_m, window_m) if faces is None else faces
+    if f is None:
         return m
     g = m.grid
     h, w = g.states.shape
-    xs, ys, on = _on_ring(m, band)
-    if not on.any():
-        return m
-    rows, cols = np.nonzero(on)
-    seen_from = np.asarray(m.trajectory, np.float64)[-1, 1:3]  # where the robot is as it sends the map
-    qx, qy = xs[cols] - seen_from[0], ys[rows] - seen_from[1]
-    k = shift_m / np.maximum(np.hypot(qx, qy), 1e-9)
-    px, py = xs[cols] + k * qx, ys[rows] + k * qy
+    px, py = f.x, f.y
     if until is not None and until > map_time(m):
         a = angular_speed(m) * (until - map_time(m))
         ca, sa = np.cos(a), np.sin(a)
@@ -136,9 +130,37 @@ def teammates_centred(m: MapInput, shift_m: float, window_m: float, until: float
     to_r = np.floor((py - g.origin[1]) / g.resolution).astype(np.int64)
     inside = (to_c >= 0) & (to_c < w) & (to_r >= 0) & (to_r < h)
     states = g.states.copy()
-    states[on] = UNKNOWN_S
+    states[f.rows, f.cols] = UNKNOWN_S
     states[to_r[inside], to_c[inside]] = OCCUPIED_S
     return dataclasses.replace(m, grid=OccupancyGrid(states, g.resolution, g.origin))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Faces:
+    """The occupied cells on a map's team ring (``rows``, ``cols``) and where :func:`teammates_centred` puts
+    them at the map's instant (``x``, ``y``, metres: moved ``shift_m`` along the robot's line of sight)."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+
+
+def centred_faces(m: MapInput, shift_m: float, window_m: float) -> Faces | None:
+    """The :class:`Faces` of ``m`` (None: no ring, or nothing on it) — the part of :func:`teammates_centred`
+    that does not depend on the instant: a pair of maps of two instants moves one of them on, and each of a
+    team's maps is moved on to as many instants as it has pairs."""
+    band = ring(m, 2 * shift_m, window_m)
+    if band is None:
+        return None
+    xs, ys, on = _on_ring(m, band)
+    if not on.any():
+        return None
+    rows, cols = np.nonzero(on)
+    seen_from = np.asarray(m.trajectory, np.float64)[-1, 1:3]  # where the robot is as it sends the map
+    qx, qy = xs[cols] - seen_from[0], ys[rows] - seen_from[1]
+    k = shift_m / np.maximum(np.hypot(qx, qy), 1e-9)
+    return Faces(rows, cols, xs[cols] + k * qx, ys[rows] + k * qy)
 
 
 def angular_speed(m: MapInput) -> float:

@@ -60,7 +60,7 @@ from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
 from .pool import parallel_map
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
-from .teammates import map_time, teammates_centred, without_teammates
+from .teammates import centred_faces, map_time, teammates_centred, without_teammates
 from .track import Tracker, decide
 from .verify import Verification, check_pair, no_evidence, pairwise
 
@@ -372,9 +372,10 @@ def _no_ring_time(params: MergeParams) -> bool:
 
 def _seen_one(m: MapInput, params: MergeParams, memo: Memo | None, until: float | None = None) -> MapInput:
     """One map as :func:`_seen` gives it, shared through ``memo``; with ``until`` (faces centred), its
-    teammates moved on to that instant, not shared: one per pair and per cycle's newest map, they filled
-    the 16-robot hall's memo (274 of its 720 entries after 8 s), and the pairs' results it evicted were
-    searched again, where a moved map costs a millisecond."""
+    teammates moved on to that instant. A moved map is not shared: one per pair and per cycle's newest map,
+    they filled the 16-robot hall's memo (274 of its 720 entries after 8 s), and the pairs' results it
+    evicted were searched again; its ring's cells and their centred places (:func:`centred_faces`, one entry
+    per map version) are, and only the turn and a copy of the grid are paid per pair."""
     if params.teammate_radius_m > 0:
         how, arg, extra = without_teammates, params.teammate_radius_m, ()
     elif params.teammate_shift_m > 0:
@@ -383,8 +384,12 @@ def _seen_one(m: MapInput, params: MergeParams, memo: Memo | None, until: float 
         extra = (until,) if until is not None and t is not None and until > t else ()
     else:
         return m
-    if memo is None or m.trajectory is None or extra:
+    if memo is None or m.trajectory is None:
         return how(m, arg, params.window_m, *extra)
+    if extra:  # the ring's cells are the map's, shared; the map moved on is the pair's own
+        faces = memo.get(("faces", map_key(m), arg, params.window_m),
+                         lambda: centred_faces(m, arg, params.window_m))
+        return m if faces is None else teammates_centred(m, arg, params.window_m, *extra, faces=faces)
     return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m),
                     lambda: how(m, arg, params.window_m))
 

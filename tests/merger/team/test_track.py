@@ -6,10 +6,12 @@ answer injected into the tracker replaced by the global search, the staleness bo
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
+from merger.lattice import extract_roi
 from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams
@@ -192,3 +194,38 @@ def test_the_settings_are_validated():
         MergeParams(research_period_s=-1.0)
     with pytest.raises(ValueError, match="research_change"):
         MergeParams(research_change=1.5)
+
+
+def test_teammates_moving_on_the_ring_are_no_change_of_the_scene():
+    """A pair without an answer is searched again when its ROIs change (research_change, a quarter of it
+    without an answer). Teammates' bodies on the team's ring move on at every version: with the ring seen
+    apart (the default teammate_shift_m) that is no change; a new wall off the ring is. With the setting
+    off the same body's move alone calls for a global search."""
+    from merger.grid import FREE_S, OCCUPIED_S, OccupancyGrid
+    from merger.team.params import MapInput
+
+    res, c = 0.05, (4.0, 4.0)
+    a = np.radians(np.linspace(0.0, 40.0, 20))
+    path = np.c_[np.arange(20) * 0.1, c[0] + 2.0 * np.cos(a), c[1] + 2.0 * np.sin(a)]  # the robot's circle, 2 m
+    base = np.full((160, 160), FREE_S, np.uint8)
+    base[10:150, 10] = OCCUPIED_S  # a wall 3.5 m from the center, off the ring
+
+    def version(v, turn_deg, wall=False):
+        s = base.copy()
+        yy, xx = np.mgrid[0:160, 0:160]
+        for k in range(12):  # twelve teammates' bodies on the ring, 30° apart, turned on by turn_deg
+            a = math.radians(30.0 * k + turn_deg)
+            bx, by = c[0] + 2.0 * math.cos(a), c[1] + 2.0 * math.sin(a)
+            s[np.hypot((xx + 0.5) * res - bx, (yy + 0.5) * res - by) < 0.18] = OCCUPIED_S
+        if wall:
+            s[0:40, 0:40] = OCCUPIED_S  # a new structure 3–5.6 m from the center, off the ring
+        return MapInput("A", OccupancyGrid(s, res, (0.0, 0.0)), c, version=v, trajectory=path)
+
+    before, moved, walled = version(1, 0.0), version(2, 15.0), version(3, 15.0, wall=True)
+    for params, moved_due in ((MergeParams(roi_m=8.0), False), (MergeParams(roi_m=8.0, teammate_shift_m=0.0), True)):
+        t = Tracker.from_params(params)
+        tr = t.track("A|B")
+        t.searched(tr, [before], params.roi_m, 0.0)
+        assert roi_change(tr.rois["A"], extract_roi(moved.grid, c, 160)) > t.change * 0.25  # the body moved
+        assert bool(t.due(tr, [moved], params.roi_m, 1.0)) is moved_due
+        assert "changed" in t.due(tr, [walled], params.roi_m, 1.0)

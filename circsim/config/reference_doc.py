@@ -76,8 +76,8 @@ RESEARCH = """
   answer (±3° and ±3 cells, the same measure, 0.1° step and sub-cell refinement; `merger.search.local`) and
   the whole-map verification. A global search runs when (a) that fails, or its ν falls more than
   `research_drop` ({drop:g}) below the last global search's; (b) either map's region of interest changed
-  by more than `research_change` ({change:g}: that fraction of its known cells changed state) since the
-  last global search; (c) `research_period_s` ({period:g} s) passed since it; (d) a global answer that
+  by more than `research_change` ({change:g}: that fraction of its known cells changed state; the cells on
+  the team's ring, where the teammates drive, do not count) since the last global search; (c) `research_period_s` ({period:g} s) passed since it; (d) a global answer that
   disagreed awaits a second one (a different answer replaces the tracked one only when two global searches
   find it and it verifies with a higher ν: hysteresis; each switch is an event in the run's log), or the
   team's assembly found the pair inconsistent. The first merge of a pair is always a global search's

@@ -105,7 +105,7 @@ class MergeParams:
     research : "on_change" (default) — a pair (tree) or the team's hypothesis (orders) that holds an accepted
         answer is re-verified at each new map version by an exact local search about it and searched
         globally only when that fails, its ν falls more than ``research_drop`` below the last global
-        search's, a map's ROI changed by more than ``research_change`` (fraction of known cells) since then,
+        search's, a map's ROI changed by more than ``research_change`` (fraction of known cells; not the team's ring) since then,
         or ``research_period_s`` passed (:mod:`merger.team.track`); "every_version" — every map version is
         searched globally (the thesis's behaviour).
     ambiguity_margin : with it (default: 0.05 with a window, 0 without), a cycle in which another accepted

@@ -148,7 +148,7 @@ class TeamMerger:
         self._strategy = strategy_of(self.strategy, len(self.team))
         self.strategy = self._strategy.name
         if self.tracker is None and self.params.research_mode.tracks:
-            self.tracker = Tracker.from_params(self.params)
+            self.tracker = Tracker.from_params(self.params, self.memo)
 
     def receive(self, msg: MapMessage) -> bool:
         """Store a map; an older stamp than the one held (out-of-order delivery) is dropped."""

@@ -386,10 +386,15 @@ def _seen_one(m: MapInput, params: MergeParams, memo: Memo | None, until: float 
         return m
     if memo is None or m.trajectory is None:
         return how(m, arg, params.window_m, *extra)
-    if extra:  # the ring's cells are the map's, shared; the map moved on is the pair's own
+    if how is teammates_centred:  # the ring's cells are the map's, shared; a map moved on is the pair's own
         faces = memo.get(("faces", map_key(m), arg, params.window_m),
                          lambda: centred_faces(m, arg, params.window_m))
-        return m if faces is None else teammates_centred(m, arg, params.window_m, *extra, faces=faces)
+        if faces is None:
+            return m
+        if extra:
+            return teammates_centred(m, arg, params.window_m, *extra, faces=faces)
+        return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m),
+                        lambda: teammates_centred(m, arg, params.window_m, faces=faces))
     return memo.get(("teammates", how.__name__, map_key(m), arg, params.window_m),
                     lambda: how(m, arg, params.window_m))
 

@@ -6,7 +6,8 @@ its map to itself (a new own map) and every ``network.period_s`` it sends its ne
 teammates through the simulated network. Every tick, each robot that received any new map (its own or
 a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds, once it
 holds ``merger.min_maps`` maps (default 2: a partial team merges what it has); maps arriving in the same
-tick share one cycle. Each cycle is judged against ground truth: the rotation
+tick share one cycle, and those arriving within ``merger.cycle_period_s`` of its last cycle wait for the
+next (the tree strategy's default: 0.5 s). Each cycle is judged against ground truth: the rotation
 θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
 center error (:func:`truth_translation`, :func:`circsim.judge.judge_placement`).
 
@@ -76,6 +77,8 @@ class Robot:
     first_pair_correct: bool = False
     teammates_placed: int = 0  # by the alignment it holds
     inbox_new: list[str] = field(default_factory=list)
+    cycle_period_s: float = 0.0  # merger.cycle_period_s for its merger's strategy
+    last_cycle_s: float = -math.inf
     path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y) of its SLAM pose, map frame
 
 
@@ -161,7 +164,8 @@ class Simulation:
                              strategy=sc.merger.strategy, memo=self.memo)
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
-                                   next_publish_s=phase, next_send_s=phase)
+                                   next_publish_s=phase, next_send_s=phase,
+                                   cycle_period_s=sc.merger.cycle_period_for(getattr(tm, "strategy", "")))
         self.centers_given = {n: r.center_given for n, r in self.robots.items()}
         # θ*_ij = yaw_j(0) − yaw_i(0): rotation of map j onto map i
         self.truth_deg = {i: {j: math.degrees(self.start_poses[j].yaw - self.start_poses[i].yaw) % 360.0
@@ -215,10 +219,11 @@ class Simulation:
         self._exchange(t)
         jobs = []
         for r in self.robots.values():
-            if r.inbox_new:
+            if r.inbox_new and t + 1e-9 >= r.last_cycle_s + r.cycle_period_s:  # sooner: the maps wait
                 trigger = ",".join(dict.fromkeys(r.inbox_new))
                 r.inbox_new.clear()
                 if r.merger.ready():
+                    r.last_cycle_s = t
                     jobs.append((r, trigger))
         if jobs and self._cycles_thread is not None:
             # the robots' cycles side by side on the merger's pool (each a pure function of what its robot

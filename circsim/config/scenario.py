@@ -52,6 +52,7 @@ from .schema import (
     DT_S,
     LASER_SCHEMA,
     NETWORK_SCHEMA,
+    NON_NEGATIVE,
     OUTPUT_SCHEMA,
     POSITIVE,
     SLAM_SCHEMA,
@@ -96,6 +97,12 @@ class ScenarioError(ValueError):
         super().__init__(one_line(message))
 
 
+# A robot of the tree strategy merges at most twice a simulated second. Merging at every tick that brought a
+# map, a 16-robot hall's robot ran 4.4 cycles a second, each assembling its whole team again; at 0.5 s the
+# first merges of the 8- and 16-robot halls came within 0.1 s of those (docs/experiments.md, tenth pass).
+TREE_CYCLE_PERIOD_S = 0.5
+
+
 @dataclass(frozen=True)
 class MergerSettings(MergeParams):
     """The ``merger`` section: every setting of ``merger.MergeParams`` (the same names, defaults and rules:
@@ -107,6 +114,11 @@ class MergerSettings(MergeParams):
     min_maps : a robot runs merge cycles once it holds this many maps, its own included (2: whatever it
         holds, a partial team; null, the default, or more than the team: only with every teammate's map,
         as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
+    cycle_period_s : a robot runs at most one merge cycle per this many simulated seconds, over everything
+        it holds then; maps that arrive sooner wait for it (ROS multirobot_map_merge's ``estimation_rate``).
+        Null (default): :data:`TREE_CYCLE_PERIOD_S` when the robot's merger runs the tree strategy (four
+        robots or more with ``strategy: auto``), 0 with the thesis's orders (every new map triggers a cycle,
+        thesis 3.3.1); 0: a cycle in every tick that brings a new map.
     algorithm : "thesis" (default: the search about the common center, verified), "features" (ROS
         m-explore map_merge's ORB / RANSAC pipeline) or "hough" (Carpin's Hough-spectrum merging): the
         merging method (:mod:`merger.algorithms`; the other merger keys apply to "thesis").
@@ -128,6 +140,7 @@ class MergerSettings(MergeParams):
     correct_tol_deg: float = 2.0
     correct_tol_m: float = 0.1
     min_maps: int | None = None
+    cycle_period_s: float | None = None
     strategy: str = TeamMerger.strategy  # the online merger's default ("auto"; its dataclass field's)
     algorithm: str = DEFAULT_ALGORITHM
     share_hypotheses: bool = False
@@ -140,6 +153,12 @@ class MergerSettings(MergeParams):
 
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def cycle_period_for(self, strategy: str) -> float:
+        """``cycle_period_s`` for a merger running ``strategy`` (its default resolved)."""
+        if self.cycle_period_s is not None:
+            return float(self.cycle_period_s)
+        return TREE_CYCLE_PERIOD_S if strategy == "tree" else 0.0
 
 
 @dataclass(frozen=True)
@@ -277,6 +296,7 @@ MERGER_CHECKS = {
     **{name: ruled(rule) for name, rule in RULES.items()},
     "roi_m": ruled(lambda v, key: check_roi(v, key=key, limits=True), f"a number in (0, {MAX_ROI_M:g}]"),
     "correct_tol_deg": POSITIVE, "correct_tol_m": POSITIVE, "min_maps": optional(integer(ge=2)),
+    "cycle_period_s": optional(NON_NEGATIVE),
     "strategy": choice(*STRATEGIES), "algorithm": choice(*ALGORITHMS), "share_hypotheses": boolean}
 if set(MERGER_CHECKS) != {f.name for f in fields(MergerSettings)}:  # a bench key added needs its check
     raise ImportError(f"merger section: checks for {sorted(MERGER_CHECKS)}, settings "

@@ -95,6 +95,32 @@ class Warps:
         return self._checks[key]
 
 
+    def kept_for(self, place0: dict[int, Placement]) -> Warps:
+        """A Warps of the same maps holding only what placing them by ``place0`` on map 0's frame reads:
+        their known parts and their warps onto map 0 (what :class:`Fusion` keeps, not every check's warp)."""
+        out = Warps(self.maps)
+        for k, (theta, t) in place0.items():
+            if k in self._known:
+                out._known[k] = self._known[k]
+            key = (0, k, theta, (float(t[0]), float(t[1])))
+            if key in self._warps:
+                out._warps[key] = self._warps[key]
+        return out
+
+
+class Fusion:
+    """:func:`merged_on_frame0` of given maps and placements, computed when called: a result's merged map
+    built when it is read (:class:`merger.team.params.TeamMergeResult`). Keeps the maps, the placements and
+    the warps onto map 0 already computed (:meth:`Warps.kept_for`); it pickles."""
+
+    def __init__(self, maps: list[MapInput], place0: dict[int, Placement], warps: Warps | None = None) -> None:
+        self.maps, self.place0 = maps, dict(place0)
+        self.warps = warps.kept_for(self.place0) if warps is not None else None
+
+    def __call__(self) -> tuple[OccupancyGrid, dict[str, OccupancyGrid]]:
+        return merged_on_frame0(self.maps, self.place0, self.warps)
+
+
 def _source_center(center, theta: float, t) -> tuple[float, float]:
     """c − R(−θ)t: with it, c_f + R(θ)(x − (c − R(−θ)t)) = c_f + t + R(θ)(x − c)."""
     if t[0] == 0.0 and t[1] == 0.0:

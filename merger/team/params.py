@@ -28,6 +28,7 @@ the one rule between two settings, ``window_m`` ≤ ``roi_m`` / 4, is ``check_wi
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING
@@ -397,18 +398,47 @@ class OrderResult:
 
 @dataclass(frozen=True, eq=False)
 class TeamMergeResult:
-    """All orders of one merge cycle, the chosen one (if any) and the merged map in map 0's frame."""
+    """All orders of one merge cycle, the chosen one (if any) and the merged map in map 0's frame.
+
+    ``merged`` and ``layers`` may be given as a function (``fuse``) instead: the merged map is then built
+    when it is first read (the tree strategy: a robot of a simulation merges several times a second and its
+    merged map is drawn once per recording period; its placement, the cycle's decision, never reads it).
+    ``wall_ms`` is the cycle's time without it; :attr:`fuse_ms` the building's, once it is built."""
 
     frame: str
     orders: tuple[OrderResult, ...]
     chosen: OrderResult | None
-    merged: OccupancyGrid | None = field(repr=False)
-    layers: dict[str, OccupancyGrid] = field(repr=False)
+    merged_map: OccupancyGrid | None = field(repr=False)
+    merged_layers: dict[str, OccupancyGrid] = field(repr=False)
     wall_ms: float = 0.0
     ambiguity: str = ""  # why a cycle whose best order passed verification was not accepted
     ambiguous: tuple[PairAmbiguity, ...] = ()  # the cycle's ambiguous pairs (:mod:`merger.team.ambiguity`)
     charged_ms: float = 0.0  # the computing time of results taken from a shared memo (:mod:`merger.team.memo`)
     assembly: AssemblyReport | None = None  # the tree strategy's consensus assembly (:mod:`merger.team.consensus`)
+    fuse: Callable[[], tuple[OccupancyGrid, dict[str, OccupancyGrid]]] | None = field(default=None, repr=False)
+    fuse_ms: float = 0.0
+
+    def _fused(self) -> None:
+        fuse = self.fuse
+        if fuse is not None:  # built once (two threads reading it at once build the same map twice)
+            t0 = time.perf_counter()
+            merged, layers = fuse()
+            object.__setattr__(self, "merged_map", merged)
+            object.__setattr__(self, "merged_layers", layers)
+            object.__setattr__(self, "fuse_ms", (time.perf_counter() - t0) * 1e3)
+            object.__setattr__(self, "fuse", None)
+
+    @property
+    def merged(self) -> OccupancyGrid | None:
+        """The merged map in map 0's frame (None: the cycle was not accepted)."""
+        self._fused()
+        return self.merged_map
+
+    @property
+    def layers(self) -> dict[str, OccupancyGrid]:
+        """Each placed map on the merged map's canvas, by name ({}: not accepted)."""
+        self._fused()
+        return self.merged_layers
 
     @property
     def cost_ms(self) -> float:

@@ -54,7 +54,7 @@ from ..search import Alignment, search
 from ..search.local import local_search
 from .ambiguity import resolve, ridge, rival
 from .consensus import SE2, AssemblyReport, Measurement, Paths, assemble
-from .frames import Warps, compose, merged_on_frame0, shifted
+from .frames import Fusion, Warps, compose, shifted
 from .memo import Memo, map_key
 from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
@@ -321,7 +321,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     result = OrderResult(tuple(m.name for m in sub), {maps[k].name: place[k][0] for k in order}, steps, checks,
                          not failed, "; ".join(failed), {maps[k].name: place[k][1] for k in order})
     guard = beyond_refusal(result) if result.accepted else ""  # a tree edge's best alignment beyond the window
-    chosen, merged, layers = (result, None, {}) if result.accepted and not guard else (None, None, {})
+    chosen, fusion = (result if result.accepted and not guard else None), None
     if chosen is not None and tracker is not None:
         tracker.team_place = {maps[k].name: place[k] for k in order}
     if chosen is not None:
@@ -334,12 +334,12 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         result = chosen
         shown = [given[k] for k in order]
         same = all(a is b for a, b in zip(shown, sub, strict=True))
-        merged, layers = merged_on_frame0(shown, sub_place, sw if same else Warps(shown))
+        fusion = Fusion(shown, sub_place, sw if same else None)  # built when read (TeamMergeResult.merged)
     report = AssemblyReport(len(team.used), {k: v for k, v in team.rejected.items()},
                             {names[k]: v for k, v in team.left_out.items()}, tuple(team.joins))
-    return TeamMergeResult(maps[0].name, (result,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
+    return TeamMergeResult(maps[0].name, (result,), chosen, None, {}, (time.perf_counter() - t0) * 1e3,
                            guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None),
-                           memo.take_charged_ms() if memo is not None else 0.0, report)
+                           memo.take_charged_ms() if memo is not None else 0.0, report, fusion)
 
 
 def _seen(maps: list[MapInput], params: MergeParams, memo: Memo | None) -> list[MapInput]:

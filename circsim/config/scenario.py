@@ -42,7 +42,7 @@ from merger.limits import (
     read_input,
 )
 from merger.settings import check_roi
-from merger.team.online import STRATEGIES, TeamMerger
+from merger.team.online import STRATEGIES, STRATEGIES_BY_NAME, TeamMerger
 from merger.team.params import RULES, MergeParams
 
 from .floorplanworld import generate_world
@@ -97,12 +97,6 @@ class ScenarioError(ValueError):
         super().__init__(one_line(message))
 
 
-# A robot of the tree strategy merges at most twice a simulated second. Merging at every tick that brought a
-# map, a 16-robot hall's robot ran 4.4 cycles a second, each assembling its whole team again; at 0.5 s the
-# first merges of the 8- and 16-robot halls came within 0.1 s of those (docs/experiments.md, tenth pass).
-TREE_CYCLE_PERIOD_S = 0.5
-
-
 @dataclass(frozen=True)
 class MergerSettings(MergeParams):
     """The ``merger`` section: every setting of ``merger.MergeParams`` (the same names, defaults and rules:
@@ -116,9 +110,9 @@ class MergerSettings(MergeParams):
         as in the thesis — a 2-map cycle has no rival order for the ambiguity rule to weigh).
     cycle_period_s : a robot runs at most one merge cycle per this many simulated seconds, over everything
         it holds then; maps that arrive sooner wait for it (ROS multirobot_map_merge's ``estimation_rate``).
-        Null (default): :data:`TREE_CYCLE_PERIOD_S` when the robot's merger runs the tree strategy (four
-        robots or more with ``strategy: auto``), 0 with the thesis's orders (every new map triggers a cycle,
-        thesis 3.3.1); 0: a cycle in every tick that brings a new map.
+        Null (default): the period of the strategy the robot's merger runs (``Strategy.cycle_period_s``:
+        0.5 s for the tree, four robots or more with ``strategy: auto``; 0 for the thesis's orders, where
+        every new map triggers a cycle, thesis 3.3.1); 0: a cycle in every tick that brings a new map.
     algorithm : "thesis" (default: the search about the common center, verified), "features" (ROS
         m-explore map_merge's ORB / RANSAC pipeline) or "hough" (Carpin's Hough-spectrum merging): the
         merging method (:mod:`merger.algorithms`; the other merger keys apply to "thesis").
@@ -155,10 +149,12 @@ class MergerSettings(MergeParams):
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     def cycle_period_for(self, strategy: str) -> float:
-        """``cycle_period_s`` for a merger running ``strategy`` (its default resolved)."""
+        """``cycle_period_s`` for a merger running ``strategy`` (a resolved name: its table's period when
+        the setting is null; 0 for a merger of no strategy in the table)."""
         if self.cycle_period_s is not None:
             return float(self.cycle_period_s)
-        return TREE_CYCLE_PERIOD_S if strategy == "tree" else 0.0
+        s = STRATEGIES_BY_NAME.get(strategy)
+        return s.cycle_period_s if s is not None else 0.0
 
 
 @dataclass(frozen=True)

@@ -45,12 +45,16 @@ class Strategy:
     pairs : its searches are pair searches of raw maps (the tree's edges), not the steps of merge orders
         (the recorder names them so).
     choose : a choice between strategies (``auto``): the name of the one a team of n robots runs.
+    cycle_period_s : how often, at most, a robot running it merges by default (seconds; 0: at every new
+        map). The simulator's ``merger.cycle_period_s`` when it is not set; a node calling
+        :meth:`TeamMerger.cycle` chooses its own rate.
     """
 
     name: str
     cycle: Callable | None = None
     pairs: bool = False
     choose: Callable[[int], str] | None = None
+    cycle_period_s: float = 0.0
 
     def resolve(self, team_size: int) -> Strategy:
         """The strategy a team of ``team_size`` robots runs: itself, or the one it chooses."""
@@ -69,6 +73,9 @@ def _tree_cycle(tm: TeamMerger, inputs: list[MapInput], clock: float, reuse: dic
     return merge_tree(inputs, tm.params, reuse=reuse, memo=tm.memo, tracker=tm.tracker, now=clock)
 
 
+TREE_CYCLE_PERIOD_S = 0.5  # the tree strategy's merge period: at most two cycles a second
+
+
 def _auto(team_size: int) -> str:
     """``auto``: the thesis's ``orders`` for up to three robots (the thesis's case: three orders of two
     searches) and the ``tree`` beyond, where the orders grow as N(N−1)/2 orders of N−1 searches per cycle."""
@@ -78,7 +85,10 @@ def _auto(team_size: int) -> str:
 STRATEGIES_BY_NAME: dict[str, Strategy] = {s.name: s for s in (
     Strategy("auto", choose=_auto),
     Strategy("orders", _orders_cycle),
-    Strategy("tree", _tree_cycle, pairs=True),
+    # merging at every tick that brought a map, a 16-robot hall's robot ran 4.4 cycles a second, each assembling
+    # its whole team again; at 0.5 s the first merges of halls and rooms of 4-16 robots came within 0.7 s of
+    # those (docs/experiments.md, tenth pass)
+    Strategy("tree", _tree_cycle, pairs=True, cycle_period_s=TREE_CYCLE_PERIOD_S),
 )}
 STRATEGIES = tuple(STRATEGIES_BY_NAME)  # the strategy setting's allowed values
 

@@ -309,3 +309,69 @@ def test_the_assembly_s_rejections_reach_the_metrics_and_the_run_log_once(monkey
         told = [e for e in events if e.startswith(f"{robot}: pair X|Y rejected: inconsistent: injected")]
         assert len(told) == 1  # told once
         assert d["robots"][robot]["consistent_set"]
+
+
+class _CycleLog(Observer):
+    def __init__(self):
+        self.cycles = []  # (t, robot, trigger)
+        self.received = []  # (t, recipient, sender, stale)
+
+    def on_merge_cycle(self, c):
+        self.cycles.append((c.t, c.robot, c.trigger))
+
+    def on_map_received(self, t, recipient, sender, sent_s, stale=False):
+        self.received.append((t, recipient, sender, stale))
+
+
+@pytest.mark.slow
+def test_a_tree_robot_merges_at_most_once_per_cycle_period_and_no_map_is_skipped():
+    """merger.cycle_period_s (default 0.5 s with the tree strategy): a robot's merge cycles are at least the
+    period apart; maps arriving sooner wait and the next cycle names them in its trigger; with 0, a cycle
+    comes in every tick that brought a map, as before — and then cycles closer than the period occur."""
+    def run(*sets):
+        log = _CycleLog()
+        sim = Simulation(scene("hall4", "duration_s=8", *sets), [log])
+        sim.run()
+        return log, sim
+
+    log, sim = run()
+    assert {r.cycle_period_s for r in sim.robots.values()} == {0.5}
+    by_robot = {}
+    for t, n, trig in log.cycles:
+        by_robot.setdefault(n, []).append((t, trig))
+    assert len(by_robot) == 4
+    waited = 0
+    for n, cyc in by_robot.items():
+        times = [t for t, _ in cyc]
+        assert all(b - a >= 0.5 - 1e-9 for a, b in zip(times, times[1:], strict=False)), (n, times)
+        # every fresh map the robot received is named by its next cycle's trigger: none is skipped
+        for t, r, sender, stale in log.received:
+            if r == n and not stale and times[0] <= t <= times[-1]:
+                nxt = next((tc, trig) for tc, trig in cyc if tc >= t - 1e-9)
+                assert sender in nxt[1].split(","), (n, t, sender, nxt)
+                waited += nxt[0] > t + 1e-9
+    assert waited > 0, "no map waited for a cycle"
+
+    every, sim0 = run("merger.cycle_period_s=0")
+    assert {r.cycle_period_s for r in sim0.robots.values()} == {0.0}
+    times0 = {}
+    for t, n, _ in every.cycles:
+        times0.setdefault(n, []).append(t)
+    assert any(b - a < 0.5 - 1e-9 for ts in times0.values() for a, b in zip(ts, ts[1:], strict=False))
+    assert len(every.cycles) >= len(log.cycles)
+
+
+def test_the_thesis_orders_merge_at_every_new_map_by_default():
+    """A three-robot scene (the thesis's orders under ``strategy: auto``) keeps a cycle per new map: its
+    default cycle period is 0, so its runs are those of before the setting."""
+    sim = Simulation(scene("scene1", "duration_s=1"))
+    assert {r.merger.strategy for r in sim.robots.values()} == {"orders"}
+    assert {r.cycle_period_s for r in sim.robots.values()} == {0.0}
+    sim = Simulation(scene("scene1", "duration_s=1", "merger.cycle_period_s=0.7"))
+    assert {r.cycle_period_s for r in sim.robots.values()} == {0.7}
+
+
+def test_cycle_period_must_be_a_number_at_least_zero(capsys):
+    assert main(["run", "hall4", "--set", "merger.cycle_period_s=-1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "merger.cycle_period_s" in err and ">= 0" in err

@@ -24,7 +24,8 @@ def test_merger_settings_are_merge_params_plus_the_bench_keys():
     names = {f.name for f in dataclasses.fields(params.MergeParams)}
     own = {f.name for f in dataclasses.fields(MergerSettings)} - names
     assert (MergerSettings().roi_m, MergerSettings().window_m) == (DEFAULT_ROI_M, DEFAULT_WINDOW_M)
-    assert own == {"correct_tol_deg", "correct_tol_m", "min_maps", "strategy", "algorithm", "share_hypotheses"}
+    assert own == {"correct_tol_deg", "correct_tol_m", "min_maps", "cycle_period_s", "strategy", "algorithm",
+                   "share_hypotheses"}
     for name, path in bundled_scenarios().items():  # the scenario's values reach MergeParams unchanged
         sc = load_scenario(path)
         p = merge_params(sc)

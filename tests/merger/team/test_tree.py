@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from merger.grid import UNKNOWN_S, OccupancyGrid
 from merger.measures import Counts
 from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
@@ -480,13 +481,14 @@ def test_a_map_held_by_a_cell_exact_pair_keeps_its_placement_in_the_l_room():
 
 def _l_room_held_by(robot: str, at_s: float, seed: int):
     """The maps ``robot`` holds in its first merge cycle at or after ``at_s`` in the 12-robot L room
-    (benchmarks/scenarios/lroom12.yaml, defaults), and every held map's frame as its SLAM built it then."""
+    (benchmarks/scenarios/lroom12.yaml, defaults but a cycle in every tick that brings a map, as when the
+    tests were written: ``merger.cycle_period_s: 0``), and every held map's frame as its SLAM built it then."""
     from circsim.config.scenario import load_scenario
     from circsim.sim import Simulation
     from tests.paths import REPO
 
     sc = load_scenario(REPO / "benchmarks" / "scenarios" / "lroom12.yaml").with_overrides(
-        [f"duration_s={at_s + 0.05:g}", f"seed={seed}"])
+        [f"duration_s={at_s + 0.05:g}", f"seed={seed}", "merger.cycle_period_s=0"])
     sim, held = Simulation(sc), {}
     judge = sim._judge
 
@@ -498,3 +500,35 @@ def _l_room_held_by(robot: str, at_s: float, seed: int):
     sim._judge = keep
     sim.run()
     return held["inputs"], held["frames"]
+
+
+def test_the_merged_map_built_when_read_is_the_placed_maps_fused(views):
+    """An accepted tree cycle's merged map is built when first read (``TeamMergeResult.fuse``): the same grid
+    and layers as placing and fusing the maps by the chosen placement at once (frames.merged_on_frame0),
+    built once, and the result pickles before and after; a refused cycle has none."""
+    import pickle
+
+    from merger.team.frames import merged_on_frame0
+
+    _, names, maps, _ = views
+    inputs = _inputs(names, maps)
+    res = merge_tree(inputs, MergeParams(roi_m=8.0))
+    assert res.accepted and res.fuse is not None and res.fuse_ms == 0.0
+    copy = pickle.loads(pickle.dumps(res))
+    by = {m.name: m for m in inputs}
+    shown = [by[n] for n in res.chosen.order]  # the tree's order, map 0 first
+    place = {k: (res.chosen.theta_deg[m.name], tuple(res.chosen.translation(m.name))) for k, m in enumerate(shown)}
+    merged, layers = merged_on_frame0(shown, place)
+    assert res.merged.origin == merged.origin and np.array_equal(res.merged.states, merged.states)
+    assert set(res.layers) == set(names)
+    assert all(np.array_equal(res.layers[n].states, layers[n].states) for n in names)
+    assert res.fuse is None and res.fuse_ms > 0.0
+    first = res.merged
+    assert res.merged is first  # built once
+    assert np.array_equal(copy.merged.states, merged.states)  # the pickled result builds the same map
+    assert np.array_equal(pickle.loads(pickle.dumps(res)).merged.states, merged.states)
+    g = inputs[1].grid
+    blank = [inputs[0], dataclasses.replace(inputs[1], grid=OccupancyGrid(np.full_like(g.states, UNKNOWN_S),
+                                                                          g.resolution, g.origin))]
+    refused = merge_tree(blank, MergeParams(roi_m=8.0))
+    assert not refused.accepted and refused.merged is None and refused.layers == {}

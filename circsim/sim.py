@@ -7,9 +7,9 @@ teammates through the simulated network. Every tick, each robot that received an
 a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds, once it
 holds ``merger.min_maps`` maps (default 2: a partial team merges what it has); maps arriving in the same
 tick share one cycle, and those arriving within ``merger.cycle_period_s`` of its last cycle wait for the
-next (by default the strategy's period: 0.5 s for the tree, 0 for the thesis's orders). Each cycle is judged against ground truth: the rotation
-θ*_ij = yaw_j(0) − yaw_i(0) and the translation t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's
-center error (:func:`truth_translation`, :func:`circsim.judge.judge_placement`).
+next (by default the strategy's period: 0.5 s for the tree, 0 for the thesis's orders). Each cycle is
+judged against ground truth: the rotation θ*_ij = yaw_j(0) − yaw_i(0) and the translation
+t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's center error (:func:`truth_translation`, :func:`circsim.judge.judge_placement`).
 
 With ``merger.share_hypotheses`` every robot also sends the alignment it holds with each map it sends,
 over a second network of the same latency, jitter and loss (its own random stream, so that sharing does

@@ -94,7 +94,6 @@ class Warps:
                                            shifted(self.maps[0].center, pj[1]), params, label)
         return self._checks[key]
 
-
     def kept_for(self, place0: dict[int, Placement]) -> Warps:
         """A Warps of the same maps holding only what placing them by ``place0`` on map 0's frame reads:
         their known parts and their warps onto map 0 (what :class:`Fusion` keeps, not every check's warp)."""

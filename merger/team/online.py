@@ -86,8 +86,8 @@ STRATEGIES_BY_NAME: dict[str, Strategy] = {s.name: s for s in (
     Strategy("auto", choose=_auto),
     Strategy("orders", _orders_cycle),
     # merging at every tick that brought a map, a 16-robot hall's robot ran 4.4 cycles a second, each assembling
-    # its whole team again; at 0.5 s the first merges of halls and rooms of 4-16 robots came within 0.7 s of
-    # those (docs/experiments.md, tenth pass)
+    # its whole team again; at 0.5 s the first full merges of halls and rooms of 4-16 robots came within 1.7 s
+    # of those, less than a network period (docs/experiments.md, tenth pass)
     Strategy("tree", _tree_cycle, pairs=True, cycle_period_s=TREE_CYCLE_PERIOD_S),
 )}
 STRATEGIES = tuple(STRATEGIES_BY_NAME)  # the strategy setting's allowed values

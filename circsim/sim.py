@@ -165,7 +165,7 @@ class Simulation:
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase,
-                                   cycle_period_s=sc.merger.cycle_period_for(getattr(tm, "strategy", "")))
+                                   cycle_period_s=sc.merger.cycle_period_for(tm.strategy))
         self.centers_given = {n: r.center_given for n, r in self.robots.items()}
         # θ*_ij = yaw_j(0) − yaw_i(0): rotation of map j onto map i
         self.truth_deg = {i: {j: math.degrees(self.start_poses[j].yaw - self.start_poses[i].yaw) % 360.0

@@ -74,10 +74,10 @@ class Warps:
 
     def get(self, frame: int, k: int, theta: float, t=ORIGIN) -> OccupancyGrid:
         """Map ``k`` placed by (θ, t) onto map ``frame``'s lattice: x_f = c_f + t + R(θ)(x_k − c_k)."""
-        t = (float(t[0]), float(t[1]))
+        key = _warp_key(frame, k, theta, t)
+        t = key[3]
         if k == frame and theta == 0.0 and t == ORIGIN:
             return self.maps[k].grid
-        key = (frame, k, theta, t)
         if key not in self._warps:
             base, m, g = self.maps[frame], self.maps[k], self.known(k)
             target = shifted(base.center, t)
@@ -101,7 +101,7 @@ class Warps:
         for k, (theta, t) in place0.items():
             if k in self._known:
                 out._known[k] = self._known[k]
-            key = (0, k, theta, (float(t[0]), float(t[1])))
+            key = _warp_key(0, k, theta, t)
             if key in self._warps:
                 out._warps[key] = self._warps[key]
         return out
@@ -118,6 +118,11 @@ class Fusion:
 
     def __call__(self) -> tuple[OccupancyGrid, dict[str, OccupancyGrid]]:
         return merged_on_frame0(self.maps, self.place0, self.warps)
+
+
+def _warp_key(frame: int, k: int, theta: float, t) -> tuple:
+    """The key of a warp in :class:`Warps` (its translation as two floats)."""
+    return (frame, k, theta, (float(t[0]), float(t[1])))
 
 
 def _source_center(center, theta: float, t) -> tuple[float, float]:

@@ -57,6 +57,10 @@ from .teammates import ring
 
 UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched again at a quarter of research_change
 # (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
+LINKED_PERIOD_FACTOR = 3.0  # a pair the team's accepted placement links is searched globally for staleness only
+# after this many research_period_s (Cartographer searches globally only for trajectories not yet connected,
+# global_constraint_search_after_n_seconds; we keep a bound): in the 16-robot hall (seed 1) such searches were 425
+# of the 580 distinct global searches from 20 to 40 s, and with them or without (40 s) every metric was the same
 SAME_HYPOTHESIS_DEG = 10.0  # two answers this close in angle and SAME_HYPOTHESIS_M in translation are one hypothesis
 SAME_HYPOTHESIS_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
 
@@ -107,6 +111,7 @@ class Track:
     nu_ref: float = 0.0  # ν (or mean ν) of the last global search that set or confirmed it
     global_s: float = -math.inf  # when the last global search ran
     rois: dict = field(default_factory=dict)  # map name → its ROI states at the last global search
+    roi_keys: dict = field(default_factory=dict)  # map name → that map version's key (merger.team.memo.map_key)
     candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
     recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
     last: object = None  # the last result (used again while nothing calls for a new global search)
@@ -192,21 +197,38 @@ class Tracker:
         out.flags.writeable = False
         return out
 
-    def due(self, tr: Track, maps, roi_m: float, now: float) -> str:
+    def stale_after(self, linked: bool) -> float:
+        """The staleness bound of a pair: ``period_s``, or LINKED_PERIOD_FACTOR times it when the team's last
+        accepted placement links its two maps (``linked``)."""
+        return self.period_s * (LINKED_PERIOD_FACTOR if linked else 1.0)
+
+    def due(self, tr: Track, maps, roi_m: float, now: float, linked: bool = False) -> str:
         """Why a global search is due for ``tr`` over ``maps`` ("" when none is): staleness, change, candidate.
-        A track without an accepted answer is due at a quarter of ``change`` (UNTRACKED_CHANGE_FACTOR)."""
+        A track without an accepted answer is due at a quarter of ``change`` (UNTRACKED_CHANGE_FACTOR); the
+        staleness bound of a pair the team links is :meth:`stale_after`."""
         change = self.change if tr.tracked is not None else self.change * UNTRACKED_CHANGE_FACTOR
         if tr.candidate is not None:
             return "a disagreeing global answer awaits confirmation"
         if tr.recheck:
             return tr.recheck
-        if now - tr.global_s >= self.period_s - 1e-9:
-            return f"last global search {now - tr.global_s:.1f} s ago (research_period_s {self.period_s:g})"
+        period = self.stale_after(linked)
+        if now - tr.global_s >= period - 1e-9:
+            return f"last global search {now - tr.global_s:.1f} s ago (staleness bound {period:g} s)"
         for m in maps:
-            c = roi_change(tr.rois.get(m.name), self.roi(m, roi_m))
+            c = self.change_of(tr, m, roi_m)
             if c > change:
                 return f"{m.name}'s ROI changed by {c:.1%} (more than {change:g})"
         return ""
+
+    def change_of(self, tr: Track, m, roi_m: float) -> float:
+        """:func:`roi_change` of map ``m``'s ROI since ``tr``'s last global search; with ``memo``, computed once
+        per pair of map versions for every robot of the simulation (the robots ask it of the same versions)."""
+        before = tr.rois.get(m.name)
+        if self.memo is None or before is None or m.name not in tr.roi_keys:
+            return roi_change(before, self.roi(m, roi_m))
+        n = roi_cells(roi_m, m.grid.resolution)
+        return self.memo.get(("tracker-roi-change", tr.roi_keys[m.name], map_key(m), n, self.ring_m, self.window_m),
+                             lambda: roi_change(before, self.roi(m, roi_m)))
 
     def searched(self, tr: Track, maps, roi_m: float, now: float) -> None:
         """Record a global search of ``tr`` over ``maps`` at ``now``."""
@@ -214,6 +236,7 @@ class Tracker:
         tr.globals += 1
         tr.global_s = now
         tr.rois = {m.name: self.roi(m, roi_m) for m in maps}
+        tr.roi_keys = {m.name: map_key(m) for m in maps}
 
     def accepted(self, tr: Track, placement) -> None:
         if tr.last_accepted is not None:

@@ -214,11 +214,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         key, sub = f"{maps[r].name}|{maps[m].name}", (maps[r], maps[m])
         tr = tracker.track(key)
         local, local_ok = None, False
-        if tr.tracked is None and tr.last is not None and now - tr.global_s < tracker.period_s - 1e-9:
+        at = composed(r, m)  # None: the team's last accepted placement does not link the two maps
+        if tr.tracked is None and tr.last is not None and now - tr.global_s < tracker.stale_after(at is not None) - 1e-9:
             # never verified, but the team placement links both maps (Cartographer: trajectories already
             # connected are matched locally, from their current relative pose): a local search there,
             # a global one only at the staleness bound; a verified answer there is followed from then on
-            at = composed(r, m)
             if at is not None:
                 loc = compute_local(r, m, at)
                 tr.locals += 1
@@ -234,7 +234,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             # a local answer that has walked away from where its hypothesis was found (along a corridor's
             # flat ridge, ±3 cells a version) is another hypothesis: the global search decides
             local_ok = local_ok and tr.near_anchor(_placement(local))
-            if local_ok and not tracker.due(tr, sub, params.roi_m, now):
+            if local_ok and not tracker.due(tr, sub, params.roi_m, now, linked=at is not None):
                 tr.locals += 1
                 tr.tracked, tr.placement = local, _placement(local)
                 out = local

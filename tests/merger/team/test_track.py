@@ -15,7 +15,7 @@ from merger.lattice import extract_roi
 from merger.search import angle_diff_deg
 from merger.team.online import MapMessage, TeamMerger
 from merger.team.orders import MergeParams
-from merger.team.track import Track, Tracker, agree, decide, placement_jump, roi_change
+from merger.team.track import LINKED_PERIOD_FACTOR, Track, Tracker, agree, decide, placement_jump, roi_change
 from tests.strategies import three_views
 
 P = MergeParams(roi_m=8.0, research="on_change", research_period_s=10.0)
@@ -70,7 +70,11 @@ def test_a_tracked_cycle_reverifies_locally_and_searches_globally_when_stale(mon
         assert max(_errors(res, truth).values()) <= 2.0
         assert all(a.method.endswith("-local") for _, a in res.chosen.steps)
     _resend(tm, names, maps, 9.0)
-    res = tm.cycle(now=10.0)  # the staleness bound: every accepted pair searched globally again
+    res = tm.cycle(now=10.0)  # the staleness bound: every accepted pair searched globally again ...
+    if strategy == "tree":  # ... but a pair the team's accepted placement links: LINKED_PERIOD_FACTOR times later
+        assert res.accepted and not glob, "a pair the team links searched globally at research_period_s"
+        _resend(tm, names, maps, 10.0)
+        res = tm.cycle(now=10.0 * LINKED_PERIOD_FACTOR)
     assert res.accepted and glob
     stats = tm.tracker.stats()
     assert sum(s["local_checks"] for s in stats.values()) >= 4
@@ -229,3 +233,16 @@ def test_teammates_moving_on_the_ring_are_no_change_of_the_scene():
         assert roi_change(tr.rois["A"], extract_roi(moved.grid, c, 160)) > t.change * 0.25  # the body moved
         assert bool(t.due(tr, [moved], params.roi_m, 1.0)) is moved_due
         assert "changed" in t.due(tr, [walled], params.roi_m, 1.0)
+        # with a memo shared by two trackers (a simulation's robots), the same changes and answers; each
+        # pair of map versions' change computed once
+        from merger.team.memo import Memo
+
+        memo = Memo()
+        shared = [Tracker.from_params(params, memo=memo) for _ in range(2)]
+        for s in shared:
+            s.searched(s.track("A|B"), [before], params.roi_m, 0.0)
+        for m in (moved, walled, moved):
+            alone = t.change_of(tr, m, params.roi_m)
+            assert [s.change_of(s.track("A|B"), m, params.roi_m) for s in shared] == [alone, alone]
+            assert [s.due(s.track("A|B"), [m], params.roi_m, 1.0) for s in shared] == [t.due(tr, [m], params.roi_m, 1.0)] * 2
+        assert memo.computed == 3 + 2  # the ROIs of versions 1, 2, 3 and the changes 1 → 2 and 1 → 3, once each

@@ -120,7 +120,8 @@ def summary(res) -> str:
                         if j.get("count") else ""))
     if tr.get("per_robot"):
         lines.append(f"tracking (merger.research on_change): {tr['global_searches']} global searches, "
-                     f"{tr['local_checks']} local re-verifications, {tr['switches']} switches (summed over the robots)")
+                     f"{tr['local_checks']} local re-verifications, {tr.get('held', 0)} answers held, "
+                     f"{tr['switches']} switches (summed over the robots)")
     return "\n".join(lines)
 
 

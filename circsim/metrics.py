@@ -184,13 +184,14 @@ class RunResult:
 
     def tracking_summary(self) -> dict:
         """The tracker's work (``merger.research: on_change``): per robot and pair the global searches it
-        used, its local re-verifications and switches (a pair's global search is computed once for the
-        team and counted for every robot that used it), and the totals."""
-        tot = {"global_searches": 0, "local_checks": 0, "switches": 0}
+        used, its local re-verifications, the new map versions that kept its answer (held) and switches (a
+        pair's global search is computed once for the team and counted for every robot that used it), and the
+        totals."""
+        tot = {"global_searches": 0, "local_checks": 0, "held": 0, "switches": 0}
         for pairs in self.tracking.values():
             for s in pairs.values():
                 for k in tot:
-                    tot[k] += s[k]
+                    tot[k] += s.get(k, 0)
         return {**tot, "per_robot": self.tracking}
 
 

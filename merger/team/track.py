@@ -61,6 +61,10 @@ LINKED_PERIOD_FACTOR = 3.0  # a pair the team's accepted placement links is sear
 # after this many research_period_s (Cartographer searches globally only for trajectories not yet connected,
 # global_constraint_search_after_n_seconds; we keep a bound): in the 16-robot hall (seed 1) such searches were 425
 # of the 580 distinct global searches from 20 to 40 s, and with them or without (40 s) every metric was the same
+HOLD_CHANGE_FACTOR = 0.25  # a verified pair's answer holds for new versions while neither map's ROI changed by more
+# than this × research_change since the versions it was computed on (the frames do not move: only the maps' content
+# can move an answer). In the 8-robot hall (W 0.5 m) a map's ROI changed by a median 2.4% a version at 10–30 s and
+# 0.5% after 30 s: the re-verification of every pair at every version bought nothing there
 SAME_HYPOTHESIS_DEG = 10.0  # two answers this close in angle and SAME_HYPOTHESIS_M in translation are one hypothesis
 SAME_HYPOTHESIS_M = 0.2  # (the ambiguity rule's distances, merger.team.orders.AMBIGUOUS_DEG / _M)
 
@@ -112,6 +116,8 @@ class Track:
     global_s: float = -math.inf  # when the last global search ran
     rois: dict = field(default_factory=dict)  # map name → its ROI states at the last global search
     roi_keys: dict = field(default_factory=dict)  # map name → that map version's key (merger.team.memo.map_key)
+    last_rois: dict = field(default_factory=dict)  # map name → its ROI states in the versions ``last`` was computed on
+    last_keys: dict = field(default_factory=dict)  # map name → those versions' keys
     candidate: tuple | None = None  # a disagreeing verified global answer (θ, t), awaiting a second global
     recheck: str = ""  # why the next version must be searched globally (the team's assembly refused it)
     last: object = None  # the last result (used again while nothing calls for a new global search)
@@ -122,6 +128,7 @@ class Track:
     last_accepted: tuple | None = None  # the last accepted placement (θ, t): for the jumps
     globals: int = 0
     locals: int = 0
+    holds: int = 0  # new map versions that kept the last answer (:meth:`Tracker.unchanged`)
     switches: int = 0
     jumps: list = field(default_factory=list)  # (Δθ°, Δt m) between consecutive accepted answers
 
@@ -221,14 +228,30 @@ class Tracker:
         return ""
 
     def change_of(self, tr: Track, m, roi_m: float) -> float:
-        """:func:`roi_change` of map ``m``'s ROI since ``tr``'s last global search; with ``memo``, computed once
-        per pair of map versions for every robot of the simulation (the robots ask it of the same versions)."""
-        before = tr.rois.get(m.name)
-        if self.memo is None or before is None or m.name not in tr.roi_keys:
+        """:func:`roi_change` of map ``m``'s ROI since ``tr``'s last global search."""
+        return self._change(tr.rois.get(m.name), tr.roi_keys.get(m.name), m, roi_m)
+
+    def _change(self, before, before_key, m, roi_m: float) -> float:
+        """:func:`roi_change` of map ``m``'s ROI since ``before`` (the ROI of the version keyed ``before_key``);
+        with ``memo``, computed once per pair of map versions for every robot of the simulation (the robots
+        ask it of the same versions)."""
+        if self.memo is None or before is None or before_key is None:
             return roi_change(before, self.roi(m, roi_m))
         n = roi_cells(roi_m, m.grid.resolution)
-        return self.memo.get(("tracker-roi-change", tr.roi_keys[m.name], map_key(m), n, self.ring_m, self.window_m),
+        return self.memo.get(("tracker-roi-change", before_key, map_key(m), n, self.ring_m, self.window_m),
                              lambda: roi_change(before, self.roi(m, roi_m)))
+
+    def computed_on(self, tr: Track, maps, roi_m: float) -> None:
+        """Record the map versions ``tr.last`` was computed on (for :meth:`unchanged`)."""
+        tr.last_rois = {m.name: self.roi(m, roi_m) for m in maps}
+        tr.last_keys = {m.name: map_key(m) for m in maps}
+
+    def unchanged(self, tr: Track, maps, roi_m: float) -> bool:
+        """Whether neither map's ROI changed by more than HOLD_CHANGE_FACTOR × ``change`` since the versions
+        ``tr.last`` was computed on: its answer then holds for these versions too (:mod:`merger.team.tree`)."""
+        bar = self.change * HOLD_CHANGE_FACTOR
+        return all(m.name in tr.last_keys and self._change(tr.last_rois[m.name], tr.last_keys[m.name], m, roi_m) <= bar
+                   for m in maps)
 
     def searched(self, tr: Track, maps, roi_m: float, now: float) -> None:
         """Record a global search of ``tr`` over ``maps`` at ``now``."""
@@ -257,7 +280,7 @@ class Tracker:
 
     def stats(self) -> dict:
         """Per track: global searches, local re-verifications, switches and its answers' jumps (:func:`jump_summary`)."""
-        return {k: {"global_searches": tr.globals, "local_checks": tr.locals, "switches": tr.switches,
+        return {k: {"global_searches": tr.globals, "local_checks": tr.locals, "held": tr.holds, "switches": tr.switches,
                     "jumps": jump_summary(tr.jumps)} for k, tr in sorted(self.tracks.items())}
 
 

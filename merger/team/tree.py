@@ -215,6 +215,14 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         tr = tracker.track(key)
         local, local_ok = None, False
         at = composed(r, m)  # None: the team's last accepted placement does not link the two maps
+        if (tr.tracked is not None and tr.last is not None and tr.last.verification.passed
+                and _placement(tr.last) == tr.placement and tr.near_anchor(tr.placement)
+                and not tracker.due(tr, sub, params.roi_m, now, linked=at is not None)
+                and tracker.unchanged(tr, sub, params.roi_m)):
+            # neither map changed enough since the versions its answer was verified on to move it: kept (the
+            # frames do not move; the team's tree edges are verified again on the current maps every cycle)
+            tr.holds += 1
+            return tr.last
         if tr.tracked is None and tr.last is not None and now - tr.global_s < tracker.stale_after(at is not None) - 1e-9:
             # never verified, but the team placement links both maps (Cartographer: trajectories already
             # connected are matched locally, from their current relative pose): a local search there,
@@ -227,6 +235,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                     tr.anchor, tr.chosen = tr.placement, None
                     tracker.accepted(tr, tr.placement)
                 tr.last = loc
+                tracker.computed_on(tr, sub, params.roi_m)
                 return loc
         if tr.tracked is not None:
             local = compute_local(r, m, (tr.tracked.alignment.theta_grid_deg, tr.tracked.alignment.cells))
@@ -255,6 +264,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         if out.verification.passed:
             tracker.accepted(tr, _placement(out))
         tr.last = out
+        tracker.computed_on(tr, sub, params.roi_m)
         return out
 
     # the pairs are independent: searched side by side (merger.team.pool; the same result on any schedule)

@@ -77,19 +77,24 @@ RESEARCH = """
   the whole-map verification. A global search runs when (a) that fails, or its ν falls more than
   `research_drop` ({drop:g}) below the last global search's; (b) either map's region of interest changed
   by more than `research_change` ({change:g}: that fraction of its known cells changed state; the cells on
-  the team's ring, where the teammates drive, do not count) since the last global search; (c) `research_period_s` ({period:g} s) passed since it; (d) a global answer that
+  the team's ring, where the teammates drive, do not count) since the last global search; (c) `research_period_s` ({period:g} s) passed since it (three times
+  that for a pair whose two maps the team's accepted placement links); (d) a global answer that
   disagreed awaits a second one (a different answer replaces the tracked one only when two global searches
   find it and it verifies with a higher ν: hysteresis; each switch is an event in the run's log), or the
   team's assembly found the pair inconsistent. The first merge of a pair is always a global search's
   answer. A pair that never verified is searched again when a map's ROI changed by a quarter of
   `research_change`, or, when the held team placement already links its two maps, locally from that
-  relative pose (globally at the staleness bound).
+  relative pose (globally at the staleness bound). With the `tree`, a verified pair's answer holds for new
+  versions while neither map's ROI changed by more than a quarter of `research_change` since the versions
+  it was computed on (the maps' frames do not move; the tree's edges are verified on the current maps at
+  every cycle).
 - `every_version`: every map version is searched globally — the thesis's behaviour; `scene1`, `scene2`
   and their `-thesis` variants pin it.
 
 Anchors: Cartographer (`pose_graph.lua`, `constraint_builder_2d.cc`) searches globally only for
 trajectories not connected within `global_constraint_search_after_n_seconds` = 10 s and otherwise matches
-locally from the current relative pose (our `research_period_s`); its global matches need
+locally from the current relative pose (our `research_period_s`; for connected pairs we keep a bound three times
+it); its global matches need
 `global_localization_min_score` 0.6 against `min_score` 0.55 for local ones (the tree's stricter ν for an
 edge that no loop confirms). m-explore's `map_merge` re-estimates at 0.5 Hz and overwrites its estimate
 with every new one; its users report merged maps that jump (hrnr/m-explore #22): hence the hysteresis.

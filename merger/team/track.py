@@ -15,10 +15,17 @@ search's answer) when
 (b) either map's region of interest changed by more than ``research_change`` (the fraction of its known
     cells whose state changed; the cells on the team's ring, where the teammates' bodies move on at every
     version, are left out: :meth:`Tracker.roi`) since the pair's last global search;
-(c) the pair was last searched globally ``research_period_s`` or more ago (the staleness bound);
+(c) the pair was last searched globally ``research_period_s`` or more ago (the staleness bound; LINKED_PERIOD_FACTOR
+    times it for a pair whose two maps the team's last accepted placement links);
 (d) an earlier global search disagreed with the tracked answer (a candidate awaits confirmation), or
     the team's assembly refused a cycle that used the local answer (the tree: an inconsistent loop, a
     tree edge failing on map 0's frame): the pair's next version is searched globally.
+
+With the tree (:mod:`merger.team.tree`), a new version of a pair whose answer verified is not re-verified while
+neither map's ROI changed by more than HOLD_CHANGE_FACTOR × ``research_change`` since the versions that answer
+was computed on (:meth:`Tracker.unchanged`): the answer holds (the maps' frames do not move; only their content
+can move an answer, and the tree verifies its edges on the current maps at every cycle). The change is a
+function of the two versions alone, computed once for every robot of a simulation.
 
 A pair without an accepted answer is searched again only on (b) or (c): failed candidates are not
 retried until their maps change (Swarm-SLAM, COVINS). A global answer that agrees with the tracked one

@@ -251,3 +251,44 @@ def test_teammates_moving_on_the_ring_are_no_change_of_the_scene():
             assert [s.change_of(s.track("A|B"), m, params.roi_m) for s in shared] == [alone, alone]
             assert [s.due(s.track("A|B"), [m], params.roi_m, 1.0) for s in shared] == [t.due(tr, [m], params.roi_m, 1.0)] * 2
         assert memo.computed == 3 + 2  # the ROIs of versions 1, 2, 3 and the changes 1 → 2 and 1 → 3, once each
+
+
+def test_a_held_answer_is_verified_again_once_its_maps_change():
+    """The tree keeps a pair's verified answer for new versions while neither map's ROI changed by more than
+    HOLD_CHANGE_FACTOR × research_change since the versions it was computed on: the same grids sent again
+    are held; a map whose ROI then changes by more (here 5% of its known cells, less than research_change:
+    no global search) has its pairs verified again locally, still at the scene's truth; the other pair holds."""
+    from merger.grid import UNKNOWN_S
+    from merger.team.track import HOLD_CHANGE_FACTOR
+
+    names, maps, truth = three_views(3)[1:]
+    tm = _merger(names, maps, "tree")
+    assert tm.cycle(now=0.0).accepted
+    _resend(tm, names, maps, 1.0)
+    assert tm.cycle(now=1.0).accepted
+    stats = tm.tracker.stats()
+    assert all(s["held"] == 1 and s["local_checks"] == 0 for s in stats.values()), stats
+    who = names[2]
+    g, c = maps[2]
+    n = int(round(P.roi_m / g.resolution))
+    roi = extract_roi(g, c, n)
+    # the known cells of the ROI's square farthest from the center, 5% of the ROI's known cells, become unknown
+    rows, cols = np.nonzero(g.states != UNKNOWN_S)
+    dx = g.origin[0] + (cols + 0.5) * g.resolution - c[0]
+    dy = g.origin[1] + (rows + 0.5) * g.resolution - c[1]
+    inside = np.flatnonzero((np.abs(dx) < 0.45 * P.roi_m) & (np.abs(dy) < 0.45 * P.roi_m))
+    far = inside[np.argsort(-np.hypot(dx[inside], dy[inside]))[: int(0.05 * np.count_nonzero(roi != UNKNOWN_S))]]
+    states = g.states.copy()
+    states[rows[far], cols[far]] = UNKNOWN_S
+    changed = dataclasses.replace(g, states=states)
+    assert HOLD_CHANGE_FACTOR * P.research_change < roi_change(roi, extract_roi(changed, c, n)) < P.research_change
+    for k, (n_, (gg, cc)) in enumerate(zip(names, maps, strict=True)):
+        tm.receive(MapMessage(n_, 2.0, changed if k == 2 else gg, cc))
+    res = tm.cycle(now=2.0)
+    assert res.accepted and max(_errors(res, truth).values()) <= 2.0
+    after = tm.tracker.stats()
+    for key, s in after.items():
+        if who in key.split("|"):
+            assert s["local_checks"] == 1 and s["held"] == 1 and s["global_searches"] == 1, (key, s)
+        else:
+            assert s["held"] == 2 and s["local_checks"] == 0, (key, s)

@@ -66,8 +66,9 @@ UNTRACKED_CHANGE_FACTOR = 0.25  # a pair without an accepted answer is searched 
 # (a constant: it was read from an environment variable UCF, a setting that changed results unseen)
 LINKED_PERIOD_FACTOR = 3.0  # a pair the team's accepted placement links is searched globally for staleness only
 # after this many research_period_s (Cartographer searches globally only for trajectories not yet connected,
-# global_constraint_search_after_n_seconds; we keep a bound): in the 16-robot hall (seed 1) such searches were 425
-# of the 580 distinct global searches from 20 to 40 s, and with them or without (40 s) every metric was the same
+# global_constraint_search_after_n_seconds; we keep a bound): in the 16-robot hall (seed 1) searches at the staleness
+# bound were 425 of the 580 distinct global searches from 20 to 40 s; with linked pairs' bound 10 s, 30 s or none
+# (40 s) every metric was the same
 HOLD_CHANGE_FACTOR = 0.25  # a verified pair's answer holds for new versions while neither map's ROI changed by more
 # than this × research_change since the versions it was computed on (the frames do not move: only the maps' content
 # can move an answer). In the 8-robot hall (W 0.5 m) a map's ROI changed by a median 2.4% a version at 10–30 s and

@@ -249,10 +249,13 @@ class Tracker:
         return self.memo.get(("tracker-roi-change", before_key, map_key(m), n, self.ring_m, self.window_m),
                              lambda: roi_change(before, self.roi(m, roi_m)))
 
+    def snapshot(self, maps, roi_m: float) -> tuple[dict, dict]:
+        """The maps' ROIs and their versions' keys, by map name: what a change is measured from."""
+        return {m.name: self.roi(m, roi_m) for m in maps}, {m.name: map_key(m) for m in maps}
+
     def computed_on(self, tr: Track, maps, roi_m: float) -> None:
         """Record the map versions ``tr.last`` was computed on (for :meth:`unchanged`)."""
-        tr.last_rois = {m.name: self.roi(m, roi_m) for m in maps}
-        tr.last_keys = {m.name: map_key(m) for m in maps}
+        tr.last_rois, tr.last_keys = self.snapshot(maps, roi_m)
 
     def unchanged(self, tr: Track, maps, roi_m: float) -> bool:
         """Whether neither map's ROI changed by more than HOLD_CHANGE_FACTOR × ``change`` since the versions
@@ -266,8 +269,7 @@ class Tracker:
         tr.recheck = ""
         tr.globals += 1
         tr.global_s = now
-        tr.rois = {m.name: self.roi(m, roi_m) for m in maps}
-        tr.roi_keys = {m.name: map_key(m) for m in maps}
+        tr.rois, tr.roi_keys = self.snapshot(maps, roi_m)
 
     def accepted(self, tr: Track, placement) -> None:
         if tr.last_accepted is not None:

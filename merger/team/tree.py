@@ -215,10 +215,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         tr = tracker.track(key)
         local, local_ok = None, False
         at = composed(r, m)  # None: the team's last accepted placement does not link the two maps
+        # why a tracked pair's global search is due ("" when none is): asked once, for the hold and the local answer
+        why = tracker.due(tr, sub, params.roi_m, now, linked=at is not None) if tr.tracked is not None else ""
         if (tr.tracked is not None and tr.last is not None and tr.last.verification.passed
                 and _placement(tr.last) == tr.placement and tr.near_anchor(tr.placement)
-                and not tracker.due(tr, sub, params.roi_m, now, linked=at is not None)
-                and tracker.unchanged(tr, sub, params.roi_m)):
+                and not why and tracker.unchanged(tr, sub, params.roi_m)):
             # neither map changed enough since the versions its answer was verified on to move it: kept (the
             # frames do not move; the team's tree edges are verified again on the current maps every cycle)
             tr.holds += 1
@@ -243,7 +244,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             # a local answer that has walked away from where its hypothesis was found (along a corridor's
             # flat ridge, ±3 cells a version) is another hypothesis: the global search decides
             local_ok = local_ok and tr.near_anchor(_placement(local))
-            if local_ok and not tracker.due(tr, sub, params.roi_m, now, linked=at is not None):
+            if local_ok and not why:
                 tr.locals += 1
                 tr.tracked, tr.placement = local, _placement(local)
                 out = local

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from .grid import FREE_S, OCCUPIED_S, UNKNOWN_S, OccupancyGrid
+from .jit import njit
 
 
 def rotation(theta_deg: float) -> np.ndarray:
@@ -105,18 +106,6 @@ def _warp_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, u0: float, 
                           borderMode=cv2.BORDER_CONSTANT, borderValue=int(UNKNOWN_S))
 
 
-def _affine_nearest(moving: OccupancyGrid, r: np.ndarray, step: float, a, b, c, d, size):
-    """``cv2.warpAffine`` (nearest) of the moving states onto a target of ``size`` (w, h) whose cell
-    (i, j) looks up the continuous moving-cell coordinates (a[j] + b[i], c[j] + d[i]) (rotation ``r``,
-    ``step`` target cells per moving cell); and the cells whose lookup lies within 1/512 cell of a border,
-    where OpenCV's fixed-point arithmetic could pick the neighbour: (rows, cols, u_x, u_y) in float64."""
-    out = _warp_nearest(moving, r, step, a[0] + b[0], c[0] + d[0], size)
-    ix, jx = _near_integer(a, b, _WARP_EPS)
-    iy, jy = _near_integer(c, d, _WARP_EPS)
-    i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
-    return out, (i, j, a.take(j) + b.take(i), c.take(j) + d.take(i))
-
-
 def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, center_target,
                       target: OccupancyGrid):
     """States of :func:`warp_grid` via ``cv2.warpAffine``; None when the sizes are out of its range."""
@@ -136,20 +125,78 @@ def _warp_states_fast(moving: OccupancyGrid, theta_deg: float, center_moving, ce
                         c[0] + d[0], c[-1] + d[0], c[0] + d[-1], c[-1] + d[-1]])
     if not np.abs(corners).max() < _WARP_MAX_COORD:
         return None
-    out, (i, j, ux, uy) = _affine_nearest(moving, r, rt / rm, a, b, c, d, (w, h))
-    if i.size:
-        col, row = np.floor(ux), np.floor(uy)
-        inside = (col >= 0) & (col < moving.width) & (row >= 0) & (row < moving.height)
-        cell = np.where(inside, row * moving.width + col, 0).astype(np.intp)
-        flat = out.reshape(-1)
-        flat[i * w + j] = np.where(inside, moving.states.reshape(-1).take(cell), UNKNOWN_S)
-        tight = (np.abs(ux - np.round(ux)) < _EXACT_EPS) | (np.abs(uy - np.round(uy)) < _EXACT_EPS)
-        if tight.any():  # too close to call in float64: the reference's own arithmetic decides
-            it, jt = i[tight], j[tight]
-            rows_, cols_ = np.concatenate([it, it[:1]]), np.concatenate([jt, jt[:1]])  # ≥ 2 rows
-            pts = apply_alignment(target.cell_center(rows_, cols_), -theta_deg, center_target, center_moving)
-            out[it, jt] = sample_nearest(moving, pts)[:it.size]
+    out = _warp_nearest(moving, r, rt / rm, a[0] + b[0], c[0] + d[0], (w, h))
+    # the cells whose lookup lies within 1/512 cell of a border, where OpenCV's fixed-point arithmetic could
+    # pick the neighbour, looked up again in float64; those within 1e-9 of it are returned (the kernel
+    # :func:`_fix_borders`; :func:`_fix_borders_reference` in numpy, the tests compare them)
+    it, jt = _fix_borders(out, np.ascontiguousarray(moving.states), a, b, c, d, _WARP_EPS, _EXACT_EPS)
+    _tight(out, it, jt, moving, theta_deg, center_moving, center_target, target)
     return out
+
+
+def _tight(out, it, jt, moving, theta_deg, center_moving, center_target, target) -> None:
+    """Cells (it, jt) too close to a border to call in float64: the reference's own arithmetic decides."""
+    if it.size:
+        rows_, cols_ = np.concatenate([it, it[:1]]), np.concatenate([jt, jt[:1]])  # ≥ 2 rows
+        pts = apply_alignment(target.cell_center(rows_, cols_), -theta_deg, center_target, center_moving)
+        out[it, jt] = sample_nearest(moving, pts)[:it.size]
+
+
+def _fix_borders_reference(out, states, a, b, c, d, eps: float, exact_eps: float):
+    """:func:`_fix_borders` in numpy (the tests compare them)."""
+    ix, jx = _near_integer(a, b, eps)
+    iy, jy = _near_integer(c, d, eps)
+    i, j = np.concatenate([ix, iy]), np.concatenate([jx, jy])
+    ux, uy = a.take(j) + b.take(i), c.take(j) + d.take(i)
+    if not i.size:
+        return i, j
+    h_m, w_m = states.shape
+    col, row = np.floor(ux), np.floor(uy)
+    inside = (col >= 0) & (col < w_m) & (row >= 0) & (row < h_m)
+    cell = np.where(inside, row * w_m + col, 0).astype(np.intp)
+    out.reshape(-1)[i * out.shape[1] + j] = np.where(inside, states.reshape(-1).take(cell), UNKNOWN_S)
+    tight = (np.abs(ux - np.round(ux)) < exact_eps) | (np.abs(uy - np.round(uy)) < exact_eps)
+    return i[tight], j[tight]
+
+
+@njit(cache=True, nogil=True)
+def _fix_borders(out, states, a, b, c, d, eps, exact_eps):
+    """Target cells (i, j) whose continuous moving-cell coordinates (a[j] + b[i], c[j] + d[i]) lie within
+    ``eps`` of a cell border on either axis: looked up again in float64 (nearest: the containing cell,
+    unknown outside ``states``); returns those within ``exact_eps`` of a border (rows, cols). Per axis, the
+    fractional parts of ``a`` (``c``) sorted, one binary search per row, as :func:`_near_integer`."""
+    h_m, w_m = states.shape
+    ti, tj = [], []
+    for axis in range(2):
+        p, q = (a, b) if axis == 0 else (c, d)
+        f = np.mod(p, 1.0)
+        order = np.argsort(f)
+        fs = f[order]
+        for i in range(q.size):
+            g = np.mod(-q[i], 1.0)
+            for s in (-1.0, 0.0, 1.0):  # f − 1, f, f + 1: the wrap-around
+                lo, hi = 0, fs.size  # the first k with fs[k] + s >= g − eps (np.searchsorted's left side)
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if fs[mid] + s < g - eps:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                k = lo
+                while k < fs.size and fs[k] + s <= g + eps:
+                    if fs[k] + s >= g - eps:
+                        j = order[k]
+                        ux, uy = a[j] + b[i], c[j] + d[i]
+                        col, row = math.floor(ux), math.floor(uy)
+                        if 0 <= col < w_m and 0 <= row < h_m:
+                            out[i, j] = states[row, col]
+                        else:
+                            out[i, j] = UNKNOWN_S
+                        if abs(ux - round(ux)) < exact_eps or abs(uy - round(uy)) < exact_eps:
+                            ti.append(i)
+                            tj.append(j)
+                    k += 1
+    return np.array(ti, np.int64), np.array(tj, np.int64)
 
 
 def _lattice_box(ref: OccupancyGrid, x0: float, x1: float, y0: float, y1: float) -> OccupancyGrid:

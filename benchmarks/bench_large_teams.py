@@ -12,7 +12,7 @@ Run from the repository root::
 A run is SCENARIO:SECONDS:SEEDS — a bundled scenario or one of ``benchmarks/scenarios/`` (``lroom12``: 12
 robots in an L-shaped wall room written from the README's template, centers 0.2 m off; ``hall16``: 16
 robots, 20 × 14 m; ``hall32``: 32 robots, 26 × 20 m, 5 m circle; none tuned on), every merger setting
-default; ``scaleN`` is hall16's world with N robots on its circle; ``hall8w`` is the bundled hall8 with ``merger.window_m=0.5`` and centers 0.15 m off. Each run is
+default; ``scaleN`` is hall16's world with N robots on its circle; ``hall8w`` and ``hall4w`` are the bundled hall8 and hall4 with ``merger.window_m=0.5`` and centers 0.15 m off. Each run is
 its own process, one after the other, so its resident memory is its own; ``--baseline DIR`` runs the
 same list with the code of the checkout DIR (e.g. ``git worktree add /tmp/old <commit>``) in the same
 invocation, so that ratios come from one machine state. Reported per run: false merges by kind (gross /
@@ -34,7 +34,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "benchmarks" / "scenarios"
 DEFAULT_RUNS = ["lroom12:60:1", "hall16:30:1", "hall32:20:1", "hall8w:60:1"]
-ALIASES = {"hall8w": ("hall8", ["merger.window_m=0.5", "center_error=0.15"])}
+ALIASES = {"hall8w": ("hall8", ["merger.window_m=0.5", "center_error=0.15"]),
+           "hall4w": ("hall4", ["merger.window_m=0.5", "center_error=0.15"])}
 
 
 SCALING_NS = (3, 4, 8, 12, 16, 32)

@@ -7,7 +7,8 @@ teammates through the simulated network. Every tick, each robot that received an
 a teammate's) runs one merge cycle with :class:`merger.TeamMerger` over everything it holds, once it
 holds ``merger.min_maps`` maps (default 2: a partial team merges what it has); maps arriving in the same
 tick share one cycle, and those arriving within ``merger.cycle_period_s`` of its last cycle wait for the
-next (by default the strategy's period: 0.5 s for the tree, 0 for the thesis's orders). Each cycle is
+next (by default the strategy's period: 0.5 s for the tree, 2 s once the robot's last cycle accepted a
+placement of its whole team; 0 for the thesis's orders). Each cycle is
 judged against ground truth: the rotation θ*_ij = yaw_j(0) − yaw_i(0) and the translation
 t*_ij = R(θ*_ij)·e_j − e_i, e_k being robot k's center error (:func:`truth_translation`, :func:`circsim.judge.judge_placement`).
 
@@ -78,6 +79,8 @@ class Robot:
     teammates_placed: int = 0  # by the alignment it holds
     inbox_new: list[str] = field(default_factory=list)
     cycle_period_s: float = 0.0  # merger.cycle_period_s for its merger's strategy
+    settled_period_s: float = 0.0  # the same once its last cycle accepted a placement of its whole team
+    settled: bool = False  # whether it did (what the robot knows: no ground truth)
     last_cycle_s: float = -math.inf
     path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y) of its SLAM pose, map frame
 
@@ -165,7 +168,8 @@ class Simulation:
             self.robots[n] = Robot(n, trajs[n], slam, tm, c_given,
                                    c_true, np.random.default_rng(next(streams)), phase,
                                    next_publish_s=phase, next_send_s=phase,
-                                   cycle_period_s=sc.merger.cycle_period_for(tm.strategy))
+                                   cycle_period_s=sc.merger.cycle_period_for(tm.strategy),
+                                   settled_period_s=sc.merger.cycle_period_for(tm.strategy, settled=True))
         self.centers_given = {n: r.center_given for n, r in self.robots.items()}
         # θ*_ij = yaw_j(0) − yaw_i(0): rotation of map j onto map i
         self.truth_deg = {i: {j: math.degrees(self.start_poses[j].yaw - self.start_poses[i].yaw) % 360.0
@@ -219,7 +223,8 @@ class Simulation:
         self._exchange(t)
         jobs = []
         for r in self.robots.values():
-            if r.inbox_new and t + 1e-9 >= r.last_cycle_s + r.cycle_period_s:  # sooner: the maps wait
+            period = r.settled_period_s if r.settled else r.cycle_period_s
+            if r.inbox_new and t + 1e-9 >= r.last_cycle_s + period:  # sooner: the maps wait
                 trigger = ",".join(dict.fromkeys(r.inbox_new))
                 r.inbox_new.clear()
                 if r.merger.ready():
@@ -314,6 +319,7 @@ class Simulation:
         r.first_correct |= first
         first_pair = res.accepted and correct and not r.first_pair_correct
         r.first_pair_correct |= first_pair
+        r.settled = bool(res.accepted and complete)
         if res.accepted:
             r.teammates_placed = sum(1 for k in top.theta_deg if k != r.name
                                      and errors[k] <= m.correct_tol_deg + JUDGE_EPS_DEG

@@ -111,8 +111,10 @@ class MergerSettings(MergeParams):
     cycle_period_s : a robot runs at most one merge cycle per this many simulated seconds, over everything
         it holds then; maps that arrive sooner wait for it (ROS multirobot_map_merge's ``estimation_rate``).
         Null (default): the period of the strategy the robot's merger runs (``Strategy.cycle_period_s``:
-        0.5 s for the tree, four robots or more with ``strategy: auto``; 0 for the thesis's orders, where
-        every new map triggers a cycle, thesis 3.3.1); 0: a cycle in every tick that brings a new map.
+        0.5 s for the tree, four robots or more with ``strategy: auto``, and 2 s once the robot's last cycle
+        accepted a placement of its whole team, ``Strategy.settled_period_s``; 0 for the thesis's orders,
+        where every new map triggers a cycle, thesis 3.3.1); 0: a cycle in every tick that brings a new map.
+        A number: that period, placed or not.
     algorithm : "thesis" (default: the search about the common center, verified), "features" (ROS
         m-explore map_merge's ORB / RANSAC pipeline) or "hough" (Carpin's Hough-spectrum merging): the
         merging method (:mod:`merger.algorithms`; the other merger keys apply to "thesis").
@@ -148,13 +150,14 @@ class MergerSettings(MergeParams):
     def as_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
-    def cycle_period_for(self, strategy: str) -> float:
+    def cycle_period_for(self, strategy: str, settled: bool = False) -> float:
         """``cycle_period_s`` for a merger running ``strategy`` (a resolved name: its table's period when
-        the setting is null; 0 for a merger of no strategy in the table)."""
+        the setting is null, :meth:`merger.team.online.Strategy.period`, by whether the robot's last cycle
+        placed its whole team, ``settled``; 0 for a merger of no strategy in the table)."""
         if self.cycle_period_s is not None:
             return float(self.cycle_period_s)
         s = STRATEGIES_BY_NAME.get(strategy)
-        return s.cycle_period_s if s is not None else 0.0
+        return s.period(settled) if s is not None else 0.0
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,9 @@ class Strategy:
     cycle_period_s : how often, at most, a robot running it merges by default (seconds; 0: at every new
         map). The simulator's ``merger.cycle_period_s`` when it is not set; a node calling
         :meth:`TeamMerger.cycle` chooses its own rate.
+    settled_period_s : the same once the robot's last cycle accepted a placement of its whole team (its
+        answers are then re-verified, not sought: ROS multirobot_map_merge re-estimates its transforms at
+        ``estimation_rate`` 0.5 Hz); 0: ``cycle_period_s`` always.
     """
 
     name: str
@@ -55,6 +58,11 @@ class Strategy:
     pairs: bool = False
     choose: Callable[[int], str] | None = None
     cycle_period_s: float = 0.0
+    settled_period_s: float = 0.0
+
+    def period(self, settled: bool) -> float:
+        """The merge period of a robot whose last cycle placed its whole team (``settled``) or not."""
+        return self.settled_period_s if settled and self.settled_period_s > 0 else self.cycle_period_s
 
     def resolve(self, team_size: int) -> Strategy:
         """The strategy a team of ``team_size`` robots runs: itself, or the one it chooses."""
@@ -74,6 +82,10 @@ def _tree_cycle(tm: TeamMerger, inputs: list[MapInput], clock: float, reuse: dic
 
 
 TREE_CYCLE_PERIOD_S = 0.5  # the tree strategy's merge period: at most two cycles a second
+TREE_SETTLED_PERIOD_S = 2.0  # ... and once a robot holds a placement of its whole team: one cycle per 2 s
+# (multirobot_map_merge's estimation_rate, 0.5 Hz; a map arrives from each teammate once per network period,
+# 2 s by default). Its first full merge comes at the faster rate, unchanged; once placed, a 16-robot hall's
+# robot re-assembled its team four times per round of maps (docs/experiments.md, twelfth pass)
 
 
 def _auto(team_size: int) -> str:
@@ -88,7 +100,8 @@ STRATEGIES_BY_NAME: dict[str, Strategy] = {s.name: s for s in (
     # merging at every tick that brought a map, a 16-robot hall's robot ran 4.4 cycles a second, each assembling
     # its whole team again; at 0.5 s the first full merges of halls and rooms of 4-16 robots came within 1.7 s
     # of those, less than a network period (docs/experiments.md, tenth pass)
-    Strategy("tree", _tree_cycle, pairs=True, cycle_period_s=TREE_CYCLE_PERIOD_S),
+    Strategy("tree", _tree_cycle, pairs=True, cycle_period_s=TREE_CYCLE_PERIOD_S,
+             settled_period_s=TREE_SETTLED_PERIOD_S),
 )}
 STRATEGIES = tuple(STRATEGIES_BY_NAME)  # the strategy setting's allowed values
 

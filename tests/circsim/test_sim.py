@@ -318,6 +318,8 @@ class _CycleLog(Observer):
 
     def on_merge_cycle(self, c):
         self.cycles.append((c.t, c.robot, c.trigger))
+        self.placed = getattr(self, "placed", [])
+        self.placed.append((c.t, c.robot, c.result.accepted and c.complete))
 
     def on_map_received(self, t, recipient, sender, sent_s, stale=False):
         self.received.append((t, recipient, sender, stale))
@@ -359,6 +361,41 @@ def test_a_tree_robot_merges_at_most_once_per_cycle_period_and_no_map_is_skipped
         times0.setdefault(n, []).append(t)
     assert any(b - a < 0.5 - 1e-9 for ts in times0.values() for a, b in zip(ts, ts[1:], strict=False))
     assert len(every.cycles) >= len(log.cycles)
+
+
+@pytest.mark.slow
+def test_a_tree_robot_that_placed_its_whole_team_merges_once_per_settled_period():
+    """Once a robot's last cycle accepted a placement of its whole team (what it knows, not the truth), its
+    next cycle comes ``Strategy.settled_period_s`` (2 s) later at the earliest; after any other cycle, 0.5 s.
+    Until its first full merge the cycles are those of a fixed 0.5 s period, so every robot's first full
+    merge is the same as with ``merger.cycle_period_s: 0.5`` (which keeps 0.5 s once placed); no map is skipped."""
+    def run(*sets):
+        log = _CycleLog()
+        res = Simulation(scene("hall4", "duration_s=16", *sets), [log]).run()
+        return log, res.to_dict()
+
+    log, d = run()
+    fixed, d_fixed = run("merger.cycle_period_s=0.5")
+    gaps = {True: [], False: []}
+    for n in {c[1] for c in log.placed}:
+        mine = [(t, placed) for t, r, placed in log.placed if r == n]
+        for (a, placed), (b, _) in zip(mine, mine[1:], strict=False):
+            gaps[placed].append(b - a)
+        times = [t for t, _ in mine]
+        for t, r, sender, stale in log.received:
+            if r == n and not stale and times[0] <= t <= times[-1]:
+                nxt = next(trig for tc, rr, trig in log.cycles if rr == n and tc >= t - 1e-9)
+                assert sender in nxt.split(","), (n, t, sender)
+    assert gaps[True] and gaps[False], "both kinds of cycles must occur"
+    assert min(gaps[True]) >= 2.0 - 1e-9 and min(gaps[False]) >= 0.5 - 1e-9
+    assert min(gaps[False]) < 2.0 - 1e-9  # a robot still searching merges sooner
+    first = {n: r["first_merge_s"] for n, r in d["robots"].items()}
+    assert all(v is not None for v in first.values())
+    assert first == {n: r["first_merge_s"] for n, r in d_fixed["robots"].items()}
+    settled_fixed = [b - a for n in first for (a, p), (b, _) in zip(*(lambda m: (m, m[1:]))(
+        [(t, placed) for t, r, placed in fixed.placed if r == n]), strict=False) if p]
+    assert settled_fixed and min(settled_fixed) < 2.0 - 1e-9  # a number: that period, placed or not
+    assert len(log.cycles) < len(fixed.cycles)
 
 
 def test_the_thesis_orders_merge_at_every_new_map_by_default():

@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 
 from merger.grid import OccupancyGrid
+from merger.jit import njit
 
 from ..config.types import SLAM_MODELS, SlamConfig
 from ..world.motion import Pose
@@ -255,15 +256,12 @@ class Slam:
         if self.hits is not None:
             rows, cols = hy[ok] + r0, hx[ok] + c0
             self.hits.add(rows, cols, pose.x + r[hit][ok] * cos[hit][ok], pose.y + r[hit][ok] * sin[hit][ok])
-        inc = self._lut[mask]
-        lo = self.log_odds[r0:r1, c0:c1]
-        lo += inc
-        np.clip(lo, -self.config.log_odds.clamp, self.config.log_odds.clamp, out=lo)
-        if self.evidence is not None:
-            ev = self.evidence[r0:r1, c0:c1]
-            ev += inc
-            c = self.config.matcher.evidence_clamp
-            np.clip(ev, -c, c, out=ev)
+        # the cells the scan touched, in one compiled pass (the others' increment is 0 and they lie within
+        # the clamps already: the same floats as adding the whole window's increments and clipping it, the
+        # numpy of before; tests/circsim/slam/test_models.py compares them)
+        ev = self.evidence[r0:r1, c0:c1] if self.evidence is not None else self.log_odds[:0, :0]
+        _add_clipped(self.log_odds[r0:r1, c0:c1], ev, mask, self._lut, np.float32(self.config.log_odds.clamp),
+                     np.float32(self.config.matcher.evidence_clamp if self.evidence is not None else 0.0))
 
     # --- output -------------------------------------------------------------------------------
     def grid(self) -> OccupancyGrid:
@@ -277,3 +275,20 @@ class Slam:
 
 def _wrap_pi(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True, nogil=True)
+def _add_clipped(lo, ev, mask, lut, clamp, ev_clamp):
+    """lo (and ev, unless empty) += lut[mask] where mask is set, each clipped to ±its clamp (float32)."""
+    evidence = ev.shape[0] > 0
+    for i in range(mask.shape[0]):
+        for j in range(mask.shape[1]):
+            m = mask[i, j]
+            if m == 0:
+                continue
+            inc = lut[m]
+            v = lo[i, j] + inc
+            lo[i, j] = min(max(v, -clamp), clamp)
+            if evidence:
+                w = ev[i, j] + inc
+                ev[i, j] = min(max(w, -ev_clamp), ev_clamp)

@@ -335,3 +335,34 @@ def test_a_wall_seen_for_many_scans_is_not_rewritten_by_a_few_scans_at_a_drifted
     for _ in range(20):
         c._integrate(drifted, s)
     assert c.evidence[row, wall] < floor <= c.evidence[row, moved]
+
+
+@pytest.mark.parametrize("clamp", [3.5, 3.3, 0.7])
+def test_the_compiled_integration_is_the_numpy_one(clamp):
+    """A scan's increments added to the touched cells only and clipped (the compiled kernel) give the same
+    float32 log-odds and evidence as adding the whole window's increments and clipping it (numpy), from
+    values at and near the clamps, with a clamp that float32 cannot hold exactly."""
+    from circsim.slam.models import _add_clipped
+
+    rng = np.random.default_rng(int(clamp * 10))
+    odds = SlamConfig().log_odds
+    lut = np.array([0.0, odds.miss, odds.hit], np.float32)  # Slam's table: untouched, free, hit
+    for _ in range(20):
+        mask = rng.choice(np.array([0, 1, 2], np.uint8), (40, 30), p=[0.7, 0.2, 0.1])
+        lo = np.clip(rng.normal(0, clamp, (40, 30)), -clamp, clamp).astype(np.float32)
+        lo[rng.random(lo.shape) < 0.2] = np.float32(clamp)
+        ev = np.clip(rng.normal(0, 5, (40, 30)), -8, 8).astype(np.float32)
+        lo2, ev2 = lo.copy(), ev.copy()
+        _add_clipped(lo, ev, mask, lut, np.float32(clamp), np.float32(8.0))
+        inc = lut[mask]
+        lo2 += inc
+        np.clip(lo2, -clamp, clamp, out=lo2)
+        ev2 += inc
+        np.clip(ev2, -8.0, 8.0, out=ev2)
+        assert np.array_equal(lo, lo2) and np.array_equal(ev, ev2)
+        lo3 = lo.copy()
+        _add_clipped(lo3, lo3[:0, :0], mask, lut, np.float32(clamp), np.float32(0.0))  # no evidence grid
+        lo4 = lo.copy()
+        lo4 += inc
+        np.clip(lo4, -clamp, clamp, out=lo4)
+        assert np.array_equal(lo3, lo4)

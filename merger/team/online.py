@@ -84,8 +84,9 @@ def _tree_cycle(tm: TeamMerger, inputs: list[MapInput], clock: float, reuse: dic
 TREE_CYCLE_PERIOD_S = 0.5  # the tree strategy's merge period: at most two cycles a second
 TREE_SETTLED_PERIOD_S = 2.0  # ... and once a robot holds a placement of its whole team: one cycle per 2 s
 # (multirobot_map_merge's estimation_rate, 0.5 Hz; a map arrives from each teammate once per network period,
-# 2 s by default). Its first full merge comes at the faster rate, unchanged; once placed, a 16-robot hall's
-# robot re-assembled its team four times per round of maps (docs/experiments.md, twelfth pass)
+# 2 s by default). Its first full merge comes at the faster rate, unchanged (unless its first complete placement
+# was wrong: then up to 2 s later); once placed, a 16-robot hall's robot re-assembled its team four times per
+# round of maps (docs/experiments.md, twelfth pass)
 
 
 def _auto(team_size: int) -> str:

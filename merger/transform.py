@@ -182,20 +182,16 @@ def _fix_borders(out, states, a, b, c, d, eps, exact_eps):
                         lo = mid + 1
                     else:
                         hi = mid
-                k = lo
-                while k < fs.size and fs[k] + s <= g + eps:
-                    if fs[k] + s >= g - eps:
-                        j = order[k]
-                        ux, uy = a[j] + b[i], c[j] + d[i]
-                        col, row = math.floor(ux), math.floor(uy)
-                        if 0 <= col < w_m and 0 <= row < h_m:
-                            out[i, j] = states[row, col]
-                        else:
-                            out[i, j] = UNKNOWN_S
-                        if abs(ux - round(ux)) < exact_eps or abs(uy - round(uy)) < exact_eps:
-                            ti.append(i)
-                            tj.append(j)
-                    k += 1
+                for k in range(lo, fs.size):  # every fs[k] + s from there up to g + eps
+                    if fs[k] + s > g + eps:
+                        break
+                    j = order[k]
+                    ux, uy = a[j] + b[i], c[j] + d[i]
+                    col, row = math.floor(ux), math.floor(uy)
+                    out[i, j] = states[row, col] if 0 <= col < w_m and 0 <= row < h_m else UNKNOWN_S
+                    if abs(ux - round(ux)) < exact_eps or abs(uy - round(uy)) < exact_eps:
+                        ti.append(i)
+                        tj.append(j)
     return np.array(ti, np.int64), np.array(tj, np.int64)
 
 

@@ -352,17 +352,17 @@ def test_the_compiled_integration_is_the_numpy_one(clamp):
         lo = np.clip(rng.normal(0, clamp, (40, 30)), -clamp, clamp).astype(np.float32)
         lo[rng.random(lo.shape) < 0.2] = np.float32(clamp)
         ev = np.clip(rng.normal(0, 5, (40, 30)), -8, 8).astype(np.float32)
-        lo2, ev2 = lo.copy(), ev.copy()
+        want_lo, want_ev = numpy_add_clip(lo, lut[mask], clamp), numpy_add_clip(ev, lut[mask], 8.0)
         _add_clipped(lo, ev, mask, lut, np.float32(clamp), np.float32(8.0))
-        inc = lut[mask]
-        lo2 += inc
-        np.clip(lo2, -clamp, clamp, out=lo2)
-        ev2 += inc
-        np.clip(ev2, -8.0, 8.0, out=ev2)
-        assert np.array_equal(lo, lo2) and np.array_equal(ev, ev2)
-        lo3 = lo.copy()
-        _add_clipped(lo3, lo3[:0, :0], mask, lut, np.float32(clamp), np.float32(0.0))  # no evidence grid
-        lo4 = lo.copy()
-        lo4 += inc
-        np.clip(lo4, -clamp, clamp, out=lo4)
-        assert np.array_equal(lo3, lo4)
+        assert np.array_equal(lo, want_lo) and np.array_equal(ev, want_ev)
+        want = numpy_add_clip(lo, lut[mask], clamp)
+        _add_clipped(lo, lo[:0, :0], mask, lut, np.float32(clamp), np.float32(0.0))  # no evidence grid
+        assert np.array_equal(lo, want)
+
+
+def numpy_add_clip(x, inc, clamp):
+    """The integration's numpy of before: the whole window's increments added, then clipped (a copy)."""
+    out = x.copy()
+    out += inc
+    np.clip(out, -clamp, clamp, out=out)
+    return out

@@ -134,6 +134,13 @@ def moving_side(grid, key: tuple, factory):
     return _kept(_MOVING, (id(grid),) + key, grid, factory, MOVING_ENTRIES)
 
 
+def moving_side_kept(grid, key: tuple):
+    """:func:`moving_side`'s value if it is kept, else None (nothing computed)."""
+    with _LOCK:
+        hit = _MOVING.get((id(grid),) + key)
+        return hit[1] if hit is not None and hit[0] is grid else None
+
+
 def geometry(key: tuple, factory):
     """Arrays that depend on a reference map's geometry alone (``key``: its origin, resolution, size, the
     center, the ROI and the window), kept for the last ``GEOMETRY_ENTRIES`` geometries: a robot's map

@@ -129,7 +129,8 @@ class Searcher:
             n_t = p.side * p.side
             excl = (np.zeros(angles.size, np.bool_), np.zeros(n_t, np.bool_)) if excl is None else excl
             q = Query(angles, rot, _mask(amask, angles.size), _mask(tmask, n_t), _raster(p.side) if raster else p.rank,
-                      self.angle_sums(), *excl, *(_NO_INIT if init is None else init), *self._points(angles),
+                      self.angle_sums(), *excl, *(_NO_INIT if init is None else init),
+                      *self._points(angles, few=amask is not None and 4 * int(np.count_nonzero(amask)) < angles.size),
                       int(mode), int(sector0), int(budget), float(keep))
             inc = _incumbent(above)
             env = np.full(angles.size, -np.inf)
@@ -152,16 +153,22 @@ class Searcher:
         best, _ = self.run(angles, mode=1, tmask=self.translation_mask(ts), sector0=1, raster=True)
         return best.value, best.angle, (best.a, best.b)
 
-    def _points(self, angles: np.ndarray):
+    def _points(self, angles: np.ndarray, few: bool = False):
         """The moving ROI's occupied lattice points at every angle of ``angles`` (start, count, buffer) for
         the coarse angles of a windowed search, kept per moving map (every search of a cycle with this map
         moving reads them; a windowed search bounds nearly every angle alone); rotation only, for other
-        angles, or when they would be large, none (the kernel computes the few angles it needs)."""
+        angles, or when they would be large, none (the kernel computes the few angles it needs). ``few``:
+        the search reads few of the angles (a local search's 7 of 360), so they are not computed for all
+        of them unless they are kept already (the kernel computes the same points: the same answer)."""
         p = self.p
+        none = np.full(angles.size, -1, np.int64), np.zeros(angles.size, np.int64), _NO_POINTS
         if p.k == 0 or not _is_coarse(angles) or p.occ_x.size * 2 * COARSE.size * 4 > POINTS_BYTES:
-            return np.full(angles.size, -1, np.int64), np.zeros(angles.size, np.int64), _NO_POINTS
-        return caches.moving_side(p.problem.moving, ("points", p.moving_key, p.n, p.res),
-                                  lambda: moving_points_all(p.tables, _COARSE_ROT))
+            return none
+        key = ("points", p.moving_key, p.n, p.res)
+        if few:
+            kept = caches.moving_side_kept(p.problem.moving, key)
+            return none if kept is None else kept
+        return caches.moving_side(p.problem.moving, key, lambda: moving_points_all(p.tables, _COARSE_ROT))
 
     def points_at(self, angles: np.ndarray, x: int) -> np.ndarray:
         """The moving ROI's occupied lattice points at ``angles[x]`` (what the moving side's bound reads)."""

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from merger.search import FINE_HALF_WIDTH_DEG, angle_diff_deg, reference_search
+from merger.search import FINE_HALF_WIDTH_DEG, angle_diff_deg, reference_search, search
 from merger.search.local import LOCAL_HALF_CELLS, LOCAL_HALF_DEG, local_search, reference_local, region
 from merger.search.prepared import translation_offsets
 from tests.strategies import adversarial_problem
@@ -43,6 +43,21 @@ def test_about_the_global_answer_the_local_search_returns_it(seed, measure, wind
     th_c = float(g.beyond_query.answer[0]) if g.beyond_query is not None else round(g.theta_deg)
     loc = local_search(p, th_c, g.cells)
     assert _key(loc) == _key(g)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), da=st.integers(-4, 4), db=st.integers(-4, 4))
+def test_the_local_search_is_the_same_with_its_points_computed_or_kept_by_a_global_search(seed, measure, da, db):
+    # a local search reads 7 of the 360 coarse angles: it computes their points itself unless a global search
+    # of the same moving map kept all of them
+    p = adversarial_problem(seed, measure, True)
+    k = p.window_cells
+    cells, theta = (max(-k, min(k, da)), max(-k, min(k, db))), 97.3
+    alone = local_search(p, theta, cells)
+    search(p, "fast")
+    after = local_search(p, theta, cells)
+    ref = reference_local(p, theta, cells)
+    assert _key(alone) == _key(after) == _key(ref)
 
 
 def test_the_region_spans_the_set_half_widths_and_wraps_at_zero():

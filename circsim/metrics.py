@@ -187,7 +187,7 @@ class RunResult:
         used, its local re-verifications, the new map versions that kept its answer (held) and switches (a
         pair's global search is computed once for the team and counted for every robot that used it), and the
         totals."""
-        tot = {"global_searches": 0, "local_checks": 0, "held": 0, "switches": 0}
+        tot = {"global_searches": 0, "local_checks": 0, "held": 0, "waited": 0, "switches": 0}
         for pairs in self.tracking.values():
             for s in pairs.values():
                 for k in tot:

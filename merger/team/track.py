@@ -28,7 +28,10 @@ can move an answer, and the tree verifies its edges on the current maps at every
 function of the two versions alone, computed once for every robot of a simulation.
 
 A pair without an accepted answer is searched again only on (b) or (c): failed candidates are not
-retried until their maps change (Swarm-SLAM, COVINS). A global answer that agrees with the tracked one
+retried until their maps change (Swarm-SLAM, COVINS). With the tree, a pair whose last two global searches
+found one answer, refused for want of whole-map support, is re-verified there on (b) (the local search) and
+searched globally once that gives ``min_support`` cells of support (:func:`merger.team.tree.merge_tree`; the
+versions it waited are the ``waited`` statistic). A global answer that agrees with the tracked one
 (within 10° and 0.2 m) replaces it; one that disagrees while the tracked answer still verifies becomes a
 *candidate* and replaces it only when the next global search finds it again and it verifies with a
 higher ν than the tracked answer on the same maps (hysteresis: m-explore's map_merge overwrites its
@@ -163,6 +166,9 @@ class Track:
     globals: int = 0
     locals: int = 0
     holds: int = 0  # new map versions that kept the last answer (:meth:`Tracker.unchanged`)
+    answers: list = field(default_factory=list)  # the last two global searches' results
+    waits: int = 0  # changed map versions of a never-verified pair not searched globally: too little support at
+    # its answer (merger.team.tree)
     switches: int = 0
     jumps: list = field(default_factory=list)  # (Δθ°, Δt m) between consecutive accepted answers
 
@@ -316,7 +322,8 @@ class Tracker:
 
     def stats(self) -> dict:
         """Per track: global searches, local re-verifications, switches and its answers' jumps (:func:`jump_summary`)."""
-        return {k: {"global_searches": tr.globals, "local_checks": tr.locals, "held": tr.holds, "switches": tr.switches,
+        return {k: {"global_searches": tr.globals, "local_checks": tr.locals, "held": tr.holds,
+                    "waited": tr.waits, "switches": tr.switches,
                     "jumps": jump_summary(tr.jumps)} for k, tr in sorted(self.tracks.items())}
 
 

@@ -292,3 +292,69 @@ def test_a_held_answer_is_verified_again_once_its_maps_change():
             assert s["local_checks"] == 1 and s["held"] == 1 and s["global_searches"] == 1, (key, s)
         else:
             assert s["held"] == 2 and s["local_checks"] == 0, (key, s)
+
+
+def _young(g, c, reach_m):
+    """The map as a young one: its cells farther than ``reach_m`` from its center unknown."""
+    from merger.grid import UNKNOWN_S
+
+    rows, cols = np.mgrid[0:g.height, 0:g.width]
+    d = np.hypot(g.origin[0] + (cols + 0.5) * g.resolution - c[0], g.origin[1] + (rows + 0.5) * g.resolution - c[1])
+    states = g.states.copy()
+    states[d > reach_m] = UNKNOWN_S
+    return dataclasses.replace(g, states=states)
+
+
+def _grow(names, maps, reaches, params, research="on_change"):
+    """A tree merger fed the maps grown version by version (one a second); per version its tracker's stats
+    and the cycle's result."""
+    tm = TeamMerger("Lyon", tuple(names), dataclasses.replace(params, research=research), strategy="tree")
+    out = []
+    for k, reach in enumerate(reaches):
+        for n, (g, c) in zip(names, maps, strict=True):
+            tm.receive(MapMessage(n, float(k), _young(g, c, reach), c))
+        res = tm.cycle(now=float(k))
+        out.append((tm.tracker.stats() if tm.tracker is not None else {}, res))
+    return out
+
+
+def test_a_pair_short_of_support_at_its_answer_waits_and_merges_when_its_maps_can_verify_it():
+    """Young maps share their centre and little else: a never-verified pair whose last two global searches
+    found one answer, refused for want of support (agr̃ + dis < min_support), is not searched again while its
+    new maps still give too little support at that answer. Once they can, it is searched and merged, in the
+    same cycle as when every version is searched, at the scene's truth."""
+    names, maps, truth = three_views(3)[1:]
+    reaches = [1.0, 1.3, 1.6, 1.9, 2.2, 9.0]  # metres about each map's center; the last: the whole maps
+    grown = _grow(names, maps, reaches, P)
+    every = _grow(names, maps, reaches, P, research="every_version")
+    waited = [sum(s["waited"] for s in st.values()) for st, _ in grown]
+    searches = [sum(s["global_searches"] for s in st.values()) for st, _ in grown]
+    assert waited[:2] == [0, 0] and waited[-2] >= 3, waited  # two searches first; then waits
+    assert searches[-2] < 3 * (len(reaches) - 1), searches
+    for st, res in grown[:-1]:  # nothing verifies while the maps are young (here or when every version is searched)
+        assert not res.accepted and all(s["waited"] + s["global_searches"] <= 5 for s in st.values())
+    assert not any(res.accepted for _, res in every[:-1])
+    res = grown[-1][1]
+    assert res.accepted and every[-1][1].accepted
+    assert max(_errors(res, truth).values()) <= 2.0
+    assert res.chosen.theta_deg == every[-1][1].chosen.theta_deg
+
+
+def test_a_pair_waiting_for_support_is_searched_at_the_staleness_bound():
+    names, maps, _ = three_views(3)[1:]
+    never = dataclasses.replace(P, min_support=10**6, research_period_s=4.0)  # no pair can ever verify
+    grown = _grow(names, maps, [1.0 + 0.15 * k for k in range(12)], never)  # every version a change
+    restarted = 0
+    for key in grown[0][0]:
+        last_search, waiting = 0.0, False
+        for k in range(1, len(grown)):
+            before, now = grown[k - 1][0][key], grown[k][0][key]
+            assert now["global_searches"] - before["global_searches"] + now["waited"] - before["waited"] == 1
+            if now["waited"] > before["waited"]:
+                waiting = True
+            else:  # searched: after a wait, only at the staleness bound
+                assert not waiting or k - last_search >= never.research_period_s, (key, k, last_search)
+                restarted += waiting
+                last_search, waiting = float(k), False
+        assert grown[-1][0][key]["waited"] >= 4, (key, grown[-1][0][key])
+    assert restarted >= 1

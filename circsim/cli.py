@@ -121,6 +121,7 @@ def summary(res) -> str:
     if tr.get("per_robot"):
         lines.append(f"tracking (merger.research on_change): {tr['global_searches']} global searches, "
                      f"{tr['local_checks']} local re-verifications, {tr.get('held', 0)} answers held, "
+                     f"{tr.get('waited', 0)} versions waited for support, "
                      f"{tr['switches']} switches (summed over the robots)")
     return "\n".join(lines)
 

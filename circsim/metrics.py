@@ -184,7 +184,8 @@ class RunResult:
 
     def tracking_summary(self) -> dict:
         """The tracker's work (``merger.research: on_change``): per robot and pair the global searches it
-        used, its local re-verifications, the new map versions that kept its answer (held) and switches (a
+        used, its local re-verifications, the new map versions that kept its answer (held), the changed
+        versions of a never-verified pair re-verified at its answer instead of searched (waited) and switches (a
         pair's global search is computed once for the team and counted for every robot that used it), and the
         totals."""
         tot = {"global_searches": 0, "local_checks": 0, "held": 0, "waited": 0, "switches": 0}

@@ -84,7 +84,11 @@ RESEARCH = """
   team's assembly found the pair inconsistent. The first merge of a pair is always a global search's
   answer. A pair that never verified is searched again when a map's ROI changed by a quarter of
   `research_change`, or, when the held team placement already links its two maps, locally from that
-  relative pose (globally at the staleness bound). With the `tree`, a verified pair's answer holds for new
+  relative pose (globally at the staleness bound); with the `tree`, once two global searches found it one
+  answer that had too little support (fewer than `min_support` cells), it is re-verified there by the
+  local search and searched globally again only once that answer's support reaches three quarters of
+  `min_support`
+  (`waited` in the tracking summary). With the `tree`, a verified pair's answer holds for new
   versions while neither map's ROI changed by more than a quarter of `research_change` since the versions
   it was computed on (the maps' frames do not move; the tree's edges are verified on the current maps at
   every cycle).

@@ -115,6 +115,11 @@ def pair_result(maps: list[MapInput], i: int, j: int, params: MergeParams, warps
     return PairResult(maps[i].name, maps[j].name, al, ver, amb)
 
 
+WAIT_SUPPORT_FRACTION = 0.75  # a never-verified pair whose answer two global searches found waits (re-verified there
+# locally) while its support there is below this fraction of min_support. Near the bar the global search can find
+# another hypothesis: in the 8-robot hall (W 0.5 m, seed 2, 6.3 s) a pair's twice-found answer, a half-turn off,
+# had 197 cells on the new maps while the global search found the right one with 512 and verified it; waiting
+# below min_support itself delayed that robot's first full merge by 1.3 s, below 3/4 of it nothing changed
 ANY_SCORE = 4.0  # a runner-up margin no score difference reaches (every measure lies within [-1, 1])
 
 
@@ -212,10 +217,11 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         """Whether a never-verified pair, due for a global search because its maps changed, is re-verified at
         its answer first: its last two global searches found one hypothesis (:func:`merger.team.track.agree`),
         and the last was refused for want of support (agr̃ + dis < ``min_support``: every whole-map rule refuses
-        it). Young maps overlap at the centre and little else: in the 16-robot hall (seed 1, 0–16 s) 914 of
-        1,350 repeated global searches were of such pairs, none verified, and every pair that verified had
-        ≥ 198 cells of support at its previous answer. Not while a search is due for another reason (the
-        staleness bound, a recheck, a candidate)."""
+        it). It then waits while the local answer's support stays below WAIT_SUPPORT_FRACTION × ``min_support``.
+        Young maps overlap at the centre and little else: in the 16-robot hall (seed 1, 0–16 s) 614 of the
+        1,350 repeated global searches had less than 150 cells of support at the pair's previous answer, and
+        none of them verified. Not while a search is due for another reason (the staleness bound, a recheck,
+        a candidate)."""
         if (not params.verification_rule.whole_maps or tr.recheck or tr.candidate is not None
                 or now - tr.global_s >= tracker.stale_after(linked) - 1e-9 or len(tr.answers) < 2):
             return False
@@ -269,10 +275,10 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             return tr.last  # never verified: searched again when its maps change or the period ends
         elif tr.last is not None and short_of_support(tr, at is not None):
             # never verified, its answer found twice without enough support: re-verified there (the exact local
-            # search about it, on the new maps), searched globally once the support there is enough
+            # search about it, on the new maps), searched globally once the support there nears min_support
             al = tr.answers[-1].alignment
             loc = compute_local(r, m, (al.theta_grid_deg, al.cells))
-            if loc.verification.support < params.min_support:
+            if loc.verification.support < WAIT_SUPPORT_FRACTION * params.min_support:
                 tr.waits += 1
                 tr.last = loc
                 return loc

@@ -166,7 +166,7 @@ class Track:
     globals: int = 0
     locals: int = 0
     holds: int = 0  # new map versions that kept the last answer (:meth:`Tracker.unchanged`)
-    answers: list = field(default_factory=list)  # the last two global searches' results
+    answers: list = field(default_factory=list)  # the last two global searches' answers (merger.team.tree.Answer)
     waits: int = 0  # changed map versions of a never-verified pair not searched globally: too little support at
     # its answer (merger.team.tree)
     switches: int = 0

@@ -133,6 +133,22 @@ def _same_place(a: MapInput, b: MapInput, al: Alignment) -> str:
     return Paths([ta, tb]).conflict([0], [1], z, [a.name, b.name])
 
 
+@dataclasses.dataclass(frozen=True)
+class Answer:
+    """What a pair's global search found, as much as the wait for support reads (not the result: a
+    result can hold its maps)."""
+
+    placement: Placement
+    around: tuple  # (θ° on the search's grid, (a, b) cells): where a local search about it starts
+    passed: bool
+    support: int
+
+    @classmethod
+    def of(cls, p: PairResult) -> Answer:
+        al = p.alignment
+        return cls(_placement(p), (al.theta_grid_deg, al.cells), p.verification.passed, p.verification.support)
+
+
 def _placement(p: PairResult) -> Placement:
     return (float(p.alignment.theta_deg), (float(p.alignment.translation_m[0]), float(p.alignment.translation_m[1])))
 
@@ -226,8 +242,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                 or now - tr.global_s >= tracker.stale_after(linked) - 1e-9 or len(tr.answers) < 2):
             return False
         before, last = tr.answers
-        return (not last.verification.passed and last.verification.support < params.min_support
-                and agree(_placement(before), _placement(last)))
+        return not last.passed and last.support < params.min_support and agree(before.placement, last.placement)
 
     def tracked(task):
         """The pair's result under the tracker (merger.team.track): local re-verification, global when due."""
@@ -276,8 +291,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         elif tr.last is not None and short_of_support(tr, at is not None):
             # never verified, its answer found twice without enough support: re-verified there (the exact local
             # search about it, on the new maps), searched globally once the support there nears min_support
-            al = tr.answers[-1].alignment
-            loc = compute_local(r, m, (al.theta_grid_deg, al.cells))
+            loc = compute_local(r, m, tr.answers[-1].around)
             if loc.verification.support < WAIT_SUPPORT_FRACTION * params.min_support:
                 tr.waits += 1
                 tr.last = loc
@@ -287,7 +301,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
             out = None
         if out is None:
             glob = compute(task)
-            tr.answers = [*tr.answers[-1:], glob]
+            tr.answers = [*tr.answers[-1:], Answer.of(glob)]
             suspect = bool(tr.recheck)
             tracker.searched(tr, sub, params.roi_m, now)
             out = decide(tracker, key, tr, local, local_ok, glob, glob.verification.passed, now, _placement,

@@ -31,10 +31,11 @@ A pair without an accepted answer is searched again only on (b) or (c): failed c
 retried until their maps change (Swarm-SLAM, COVINS). With the tree, a pair whose last two global searches
 found one answer, refused for want of whole-map support, is re-verified there on (b) (the local search) and
 searched globally once that gives three quarters of ``min_support`` cells of support
-(:func:`merger.team.tree.merge_tree`; the versions it waited are the ``waited`` statistic). A global answer that agrees with the tracked one
-(within 10° and 0.2 m) replaces it; one that disagrees while the tracked answer still verifies becomes a
-*candidate* and replaces it only when the next global search finds it again and it verifies with a
-higher ν than the tracked answer on the same maps (hysteresis: m-explore's map_merge overwrites its
+(:func:`merger.team.tree.merge_tree`; the versions it waited are the ``waited`` statistic).
+
+A global answer that agrees with the tracked one (within 10° and 0.2 m) replaces it; one that disagrees
+while the tracked answer still verifies becomes a *candidate* and replaces it only when the next global
+search finds it again and it verifies with a higher ν than the tracked answer on the same maps (hysteresis: m-explore's map_merge overwrites its
 estimate with every new one and users see merged maps jump, hrnr/m-explore #22). A verified answer is
 never dropped because one global search failed. Anchors: Cartographer searches globally only for
 trajectories not connected within ``global_constraint_search_after_n_seconds`` = 10 s (our

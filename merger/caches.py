@@ -107,14 +107,20 @@ GEOMETRY_ENTRIES = 32
 _GEOMETRY: OrderedDict = OrderedDict()
 
 
+def _hit(store: OrderedDict, key, owner):
+    """``store[key]``'s value if it was made for ``owner``, else None (the caller holds ``_LOCK``)."""
+    hit = store.get(key)
+    return hit[1] if hit is not None and hit[0] is owner else None
+
+
 def _kept(store: OrderedDict, key, owner, factory, limit: int):
     """``store[key]``'s value if it was made for ``owner`` (the object itself is held with the entry, so
     an id is never mistaken for another's), else ``factory()`` kept there; the last ``limit`` entries."""
     with _LOCK:
-        hit = store.get(key)
-        if hit is not None and hit[0] is owner:
+        hit = _hit(store, key, owner)
+        if hit is not None:
             store.move_to_end(key)
-            return hit[1]
+            return hit
     value = factory()
     with _LOCK:
         store[key] = (owner, value)
@@ -137,8 +143,7 @@ def moving_side(grid, key: tuple, factory):
 def moving_side_kept(grid, key: tuple):
     """:func:`moving_side`'s value if it is kept, else None (nothing computed)."""
     with _LOCK:
-        hit = _MOVING.get((id(grid),) + key)
-        return hit[1] if hit is not None and hit[0] is grid else None
+        return _hit(_MOVING, (id(grid),) + key, grid)
 
 
 def geometry(key: tuple, factory):

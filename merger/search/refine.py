@@ -16,8 +16,11 @@ from dataclasses import replace
 
 import cv2
 import numpy as np
+from numba import types
+from numba.core.extending import intrinsic
 
 from ..grid import OCCUPIED_S
+from ..jit import njit
 from ..lattice import half_side
 from .prepared import occupied_centres
 from .problem import fine_angles, wrap_deg
@@ -28,14 +31,64 @@ REMAP_MAX_COLS = 32_000  # cv2.remap asserts fewer than SHRT_MAX (32,767) column
 def _remap_mean(field: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
     """Row means of ``field`` read bilinearly at (``mx``, ``my``) (pixel coordinates, 0 outside), the
     points in column blocks of at most :data:`REMAP_MAX_COLS`: a dense ROI has more occupied cells than
-    one ``cv2.remap`` call takes (issue 26)."""
-    total = np.zeros(mx.shape[0], np.float64)
-    for j in range(0, mx.shape[1], REMAP_MAX_COLS):
-        out = cv2.remap(field, np.ascontiguousarray(mx[:, j:j + REMAP_MAX_COLS]),
-                        np.ascontiguousarray(my[:, j:j + REMAP_MAX_COLS]), cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    one ``cv2.remap`` call takes (issue 26). The refinement reads the field with :func:`_field_reads`
+    instead, which gives ``cv2.remap``'s values bit for bit (tests/merger/search/test_refine.py)."""
+    return _block_means([cv2.remap(field, np.ascontiguousarray(mx[:, j:j + REMAP_MAX_COLS]),
+                                   np.ascontiguousarray(my[:, j:j + REMAP_MAX_COLS]), cv2.INTER_LINEAR,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                         for j in range(0, mx.shape[1], REMAP_MAX_COLS)], mx.shape[1])
+
+
+def _block_means(blocks, n: int) -> np.ndarray:
+    """Row means of the float32 reads of ``n`` points given in column blocks of at most REMAP_MAX_COLS, each
+    block summed in float64 on its own and the blocks' sums added in order (one summation, whoever read)."""
+    total = np.zeros(blocks[0].shape[0], np.float64)
+    for out in blocks:
         total += out.astype(np.float64).sum(axis=1)
-    return total / mx.shape[1]
+    return total / n
+
+
+@intrinsic
+def _fma32(typingctx, a, b, c):
+    """a·b + c rounded once (float32): LLVM's fma, a fused instruction where the CPU has one, else libm's."""
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+    return types.float32(types.float32, types.float32, types.float32), codegen
+
+
+@njit(cache=True, nogil=True)
+def _field_reads(field, px, py, cs, sn, bx, by, res):
+    """The refinement's reads of ``field`` (float32) for each candidate k and point j, as ``cv2.remap``
+    (INTER_LINEAR, constant border 0) gives them at the pixel coordinates the refinement computes in float64
+    and rounds to float32: x = ((cs_k·px_j − sn_k·py_j) + bx_k) / res − 0.5, y = ((sn_k·px_j + cs_k·py_j) +
+    by_k) / res − 0.5. OpenCV 5's float remap interpolates as lerps rounded once (fused multiply-adds), a
+    neighbour outside the field reading 0: the same values, bit for bit (the tests compare them), without
+    the coordinate arrays (the refinement's largest cost: 45% of its time in the 16-robot hall)."""
+    h, w = field.shape
+    out = np.empty((cs.size, px.size), np.float32)
+    for k in range(cs.size):
+        c, s, x0, y0 = cs[k], sn[k], bx[k], by[k]
+        for j in range(px.size):
+            x = np.float32(((c * px[j] - s * py[j]) + x0) / res - 0.5)
+            y = np.float32(((s * px[j] + c * py[j]) + y0) / res - 0.5)
+            fx, fy = math.floor(x), math.floor(y)
+            ax, ay = np.float32(x - np.float32(fx)), np.float32(y - np.float32(fy))
+            ix, iy = int(fx), int(fy)
+            v00 = v01 = v10 = v11 = np.float32(0.0)
+            if 0 <= iy < h:
+                if 0 <= ix < w:
+                    v00 = field[iy, ix]
+                if 0 <= ix + 1 < w:
+                    v01 = field[iy, ix + 1]
+            if 0 <= iy + 1 < h:
+                if 0 <= ix < w:
+                    v10 = field[iy + 1, ix]
+                if 0 <= ix + 1 < w:
+                    v11 = field[iy + 1, ix + 1]
+            top = _fma32(ax, np.float32(v01 - v00), v00)
+            bottom = _fma32(ax, np.float32(v11 - v10), v10)
+            out[k, j] = _fma32(ay, np.float32(bottom - top), top)
+    return out
 
 
 def square_crop(grid, center, reach: float):
@@ -99,7 +152,9 @@ def refine_alignment(problem, al, evaluator=None):
     return replace(al, theta_deg=wrap_deg(round(theta, 9)), translation_m=t, refined=True)
 
 
-def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, float]]:
+def _smooth_refine(problem, theta0: float, t0, kernel: bool = True) -> tuple[float, tuple[float, float]]:
+    """The pattern search of :func:`refine_alignment` from (``theta0``, ``t0``): by :func:`_pattern_search`,
+    or (``kernel`` False, the tests' yardstick) in numpy with ``cv2.remap``; the same answer, bit for bit."""
     ref = problem.ref
     res = ref.resolution
     n = problem.n
@@ -115,17 +170,6 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
     crop, org = square_crop(ref, cr, half * math.sqrt(2) + w_m + 4 * res)
     field = cv2.GaussianBlur((crop == OCCUPIED_S).astype(np.float32), (0, 0), REFINE_SIGMA_CELLS)
     org = np.asarray(org, np.float64)
-
-    def scores(cands):
-        """Mean field value at the moving points for each (θ, tx, ty)."""
-        c = np.asarray(cands, np.float64)
-        th = np.radians(c[:, 0])
-        cs, sn = np.cos(th)[:, None], np.sin(th)[:, None]
-        base = cr - org
-        mx = ((cs * p[:, 0] - sn * p[:, 1]) + (base[0] + c[:, 1:2])) / res - 0.5  # crop pixel coordinates
-        my = ((sn * p[:, 0] + cs * p[:, 1]) + (base[1] + c[:, 2:3])) / res - 0.5
-        return _remap_mean(field, mx.astype(np.float32), my.astype(np.float32))
-
     x = np.array([theta0, float(t0[0]), float(t0[1])])
     lo = np.array([theta0 - REFINE_MAX_DEG, t0[0] - REFINE_MAX_CELLS * res, t0[1] - REFINE_MAX_CELLS * res])
     hi = np.array([theta0 + REFINE_MAX_DEG, t0[0] + REFINE_MAX_CELLS * res, t0[1] + REFINE_MAX_CELLS * res])
@@ -135,9 +179,25 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
     else:
         lo[1:] = hi[1:] = 0.0
     step = np.array([0.1, 0.25 * res, 0.25 * res])
+    base = cr - org
+    px, py = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+    if kernel:
+        x = _pattern_search(field, px, py, float(base[0]), float(base[1]), float(res), x, lo, hi, step,
+                            1 if w_m == 0 else 3, REMAP_MAX_COLS)
+        return float(x[0]), (float(x[1]), float(x[2]))
+
+    def scores(cands):
+        """Mean field value at the moving points for each (θ, tx, ty)."""
+        c = np.asarray(cands, np.float64)
+        th = np.radians(c[:, 0])
+        cs, sn = np.cos(th)[:, None], np.sin(th)[:, None]
+        mx = ((cs * p[:, 0] - sn * p[:, 1]) + (base[0] + c[:, 1:2])) / res - 0.5  # crop pixel coordinates
+        my = ((sn * p[:, 0] + cs * p[:, 1]) + (base[1] + c[:, 2:3])) / res - 0.5
+        return _remap_mean(field, mx.astype(np.float32), my.astype(np.float32))
+
     dims = [0] if w_m == 0 else [0, 1, 2]
     best = scores([x])[0]
-    for _ in range(200):
+    for _ in range(REFINE_ROUNDS):
         cands = []
         for d in dims:
             for sgn in (-1.0, 1.0):
@@ -154,3 +214,87 @@ def _smooth_refine(problem, theta0: float, t0) -> tuple[float, tuple[float, floa
         if step[0] < 0.005 and step[1] < res / 32:
             break
     return float(x[0]), (float(x[1]), float(x[2]))
+
+
+REFINE_ROUNDS = 200  # the pattern search's most rounds
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, lo, n):
+    """numpy's pairwise sum of a[lo:lo + n] (float64), in its order: what ``ndarray.sum`` gives, bit for bit."""
+    if n < 8:
+        r = 0.0
+        for i in range(n):
+            r += a[lo + i]
+        return r
+    if n <= 128:
+        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+        i = 8
+        while i < n - (n % 8):
+            r0 += a[lo + i]
+            r1 += a[lo + i + 1]
+            r2 += a[lo + i + 2]
+            r3 += a[lo + i + 3]
+            r4 += a[lo + i + 4]
+            r5 += a[lo + i + 5]
+            r6 += a[lo + i + 6]
+            r7 += a[lo + i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise_sum(a, lo, n2) + _pairwise_sum(a, lo + n2, n - n2)
+
+
+@njit(cache=True, nogil=True)
+def _mean_read(field, px, py, th_deg, tx, ty, base0, base1, res, block, buf):
+    """The refinement's score at (θ°, tx, ty): the mean of :func:`_field_reads` over the points, summed as
+    :func:`_block_means` sums them."""
+    th = np.radians(th_deg)
+    reads = _field_reads(field, px, py, np.array([math.cos(th)]), np.array([math.sin(th)]),
+                         np.array([base0 + tx]), np.array([base1 + ty]), res)
+    for j in range(px.size):
+        buf[j] = np.float64(reads[0, j])
+    total = 0.0
+    for j in range(0, px.size, block):
+        total += _pairwise_sum(buf, j, min(block, px.size - j))
+    return total / px.size
+
+
+@njit(cache=True, nogil=True)
+def _pattern_search(field, px, py, base0, base1, res, x, lo, hi, step, ndims, block):
+    """:func:`_smooth_refine`'s pattern search compiled (the same candidates, order, scores and tests as its
+    numpy form: the same answer, bit for bit; the GIL released). Returns (θ°, tx, ty)."""
+    x = x.copy()
+    step = step.copy()
+    buf = np.empty(px.size, np.float64)
+    cand = np.empty((2 * ndims, 3), np.float64)
+    best = _mean_read(field, px, py, x[0], x[1], x[2], base0, base1, res, block, buf)
+    for _ in range(REFINE_ROUNDS):
+        nc = 0
+        for d in range(ndims):
+            for sgn in (-1.0, 1.0):
+                y = min(max(x[d] + sgn * step[d], lo[d]), hi[d])
+                if y != x[d]:
+                    cand[nc, :] = x
+                    cand[nc, d] = y
+                    nc += 1
+        j, vj = -1, 0.0
+        for c in range(nc):  # the first maximum, as numpy's argmax
+            v = _mean_read(field, px, py, cand[c, 0], cand[c, 1], cand[c, 2], base0, base1, res, block, buf)
+            if j < 0 or v > vj:
+                j, vj = c, v
+        if j >= 0 and vj > best * (1 + 1e-9) + 1e-12:
+            x[:] = cand[j]
+            best = vj
+            continue
+        for d in range(3):
+            step[d] /= 2.0
+        if step[0] < 0.005 and step[1] < res / 32:
+            break
+    return x

@@ -5,14 +5,24 @@ refined angle stays within ±1° of the grid answer and halves the median error.
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
 from merger import search_pair
 from merger.grid import OccupancyGrid
 from merger.search import refine
-from merger.search.refine import REFINE_MAX_DEG, _plateau_middle, _remap_mean, square_crop
-from tests.strategies import three_views
+from merger.search.problem import RotationProblem
+from merger.search.refine import (
+    REFINE_MAX_DEG,
+    _field_reads,
+    _pairwise_sum,
+    _plateau_middle,
+    _remap_mean,
+    _smooth_refine,
+    square_crop,
+)
+from tests.strategies import adversarial_problem, three_views
 
 
 def test_a_plateau_starts_at_its_middle():
@@ -61,6 +71,62 @@ def test_the_blocked_bilinear_mean_equals_numpys(monkeypatch):
     np.testing.assert_allclose(whole, want, atol=2e-3)  # OpenCV's weights are 1/32 steps (INTER_BITS)
     monkeypatch.setattr(refine, "REMAP_MAX_COLS", 7)  # blocks of 7 points: the sum over blocks is the same
     np.testing.assert_allclose(_remap_mean(field, mx, my), whole, rtol=1e-6)
+
+
+def _reads_by_remap(field, px, py, th, bx, by, res):
+    """The refinement's reads as it computed them before its kernel: coordinate arrays and cv2.remap."""
+    cs, sn = np.cos(th)[:, None], np.sin(th)[:, None]
+    mx = ((cs * px - sn * py) + bx[:, None]) / res - 0.5
+    my = ((sn * px + cs * py) + by[:, None]) / res - 0.5
+    return cv2.remap(field, mx.astype(np.float32), my.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_kernels_field_reads_are_cv2_remaps_bit_for_bit(seed):
+    """Blurred walls and noise, points well inside, on the border and outside the field (a neighbour outside
+    reads 0), pixel coordinates on whole and half pixels."""
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(3, 280, 2))
+    if seed % 2:
+        field = cv2.GaussianBlur((rng.random((h, w)) < 0.08).astype(np.float32), (0, 0), 1.0)
+    else:
+        field = rng.random((h, w)).astype(np.float32)
+    res = 0.05
+    n, m = int(rng.integers(1, 6000)), int(rng.integers(1, 7))
+    px = rng.uniform(-0.6, 0.6, n) * max(h, w) * res
+    py = rng.uniform(-0.6, 0.6, n) * max(h, w) * res
+    px[: n // 4] = np.round(px[: n // 4] / res * 2) * res / 2  # whole and half pixels
+    th = np.radians(np.concatenate([[0.0, 90.0], rng.uniform(0, 360, m)]))
+    bx, by = rng.uniform(0, w * res, th.size), rng.uniform(0, h * res, th.size)
+    want = _reads_by_remap(field, px, py, th, bx, by, res)
+    got = _field_reads(field, px, py, np.cos(th), np.sin(th), bx, by, res)
+    assert got.dtype == np.float32 and np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("n", [*range(1, 20), 127, 128, 129, 1000, 4099, 70_001])
+def test_the_kernels_sum_is_numpys_pairwise_sum(n):
+    rng = np.random.default_rng(n)
+    a = (rng.random(n) ** 30 * np.exp(-40 * rng.random(n))).astype(np.float32).astype(np.float64)  # 1e-30 .. 1
+    assert _pairwise_sum(a, 0, n) == a.sum()
+    assert _pairwise_sum(np.concatenate([[7.0], a]), 1, n) == a.sum()
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_compiled_pattern_search_is_the_numpy_one(seed):
+    """Adversarial problems (and a windowless one) from starts anywhere in the window: the same (θ, t), bit for bit."""
+    rng = np.random.default_rng(seed)
+    if seed == 7:
+        _, _, maps, _ = three_views(seed)
+        (g0, c0), (g1, c1) = maps[0], maps[1]
+        problems = [RotationProblem(g0, g1, c0, c1, window_m=0.0, refine=True)]
+    else:
+        problems = [adversarial_problem(seed, measure, window=True) for measure in ("similarity", "ncc")]
+    for prob in problems:
+        for _ in range(4):
+            w = prob.window_m if prob.window_cells > 0 else 0.0
+            start = (float(rng.uniform(0, 360)), (float(rng.uniform(-w, w)), float(rng.uniform(-w, w))))
+            assert _smooth_refine(prob, *start) == _smooth_refine(prob, *start, kernel=False)
 
 
 @pytest.mark.slow

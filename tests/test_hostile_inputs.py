@@ -28,7 +28,6 @@ from merger.io.mapio import check_outputs, load_map, map_files, save_map
 from merger.io.mapread import MAX_MAP_CELLS, MapFileError
 from merger.limits import MAX_YAML_BYTES, InputLimitError, YamlLimitError, load_yaml, read_input
 from merger.search import MAX_ROI_CELLS, RotationProblem, search
-from merger.search.refine import REMAP_MAX_COLS, _remap_mean
 from tests.paths import REAL_MAP
 from tests.subproc import run_capped
 
@@ -61,23 +60,13 @@ def laughs(levels: int = 9, key: str = "image") -> str:
 # --- item 1: crashes inside documented ranges ----------------------------------------------------------
 def test_refinement_of_a_dense_roi_with_more_occupied_cells_than_one_remap_call_takes():
     """cv2.remap asserts fewer than 32,767 columns: the sub-cell refinement of an ROI holding more occupied
-    cells crashed (cv2.error ... dst.cols < SHRT_MAX). Now read in blocks."""
+    cells crashed (cv2.error ... dst.cols < SHRT_MAX). The refinement reads the field in its own kernel now."""
     rng = np.random.default_rng(0)
     st = np.where(rng.random((240, 240)) < 0.92, OCCUPIED_S, FREE_S).astype(np.uint8)
     g = OccupancyGrid(st, 0.05, (0.0, 0.0))
     assert (st[20:220, 20:220] == OCCUPIED_S).sum() > 32_766  # the 10 m ROI about (6, 6)
     al = search(RotationProblem(g, g, (6.0, 6.0), (6.0, 6.0), roi_m=10.0, window_m=0.0, refine=True), "fast")
     assert al.refined and min(al.theta_deg, 360 - al.theta_deg) < 0.2
-
-
-def test_blocked_remap_reads_the_field_exactly():
-    field = np.arange(50 * 60, dtype=np.float32).reshape(50, 60)
-    rng = np.random.default_rng(1)
-    n = 2 * REMAP_MAX_COLS + 123
-    mx = rng.integers(0, 60, (2, n)).astype(np.float32)
-    my = rng.integers(0, 50, (2, n)).astype(np.float32)
-    expected = field[my.astype(int), mx.astype(int)].astype(np.float64).mean(axis=1)
-    np.testing.assert_allclose(_remap_mean(field, mx, my), expected, rtol=1e-12)
 
 
 def test_roi_side_in_cells_is_limited_before_any_table_is_built():

@@ -15,7 +15,7 @@ The search's own caches (below :class:`BoundedCache`): a merge cycle asks severa
 problem object (the answer, then perhaps the runner-up, the guard beyond the window, a rival's values):
 they share one :class:`merger.search.searcher.Searcher` (its lattice tables and the moving ROIs it
 computed), kept by the problem's identity for the last ``MAX_ENTRIES`` problems; arrays of a moving
-map alone and of a reference geometry alone are kept likewise. Numba's on-disk cache of compiled
+map alone, of a reference map alone and of a reference geometry alone are kept likewise. Numba's on-disk cache of compiled
 kernels is separate (``NUMBA_CACHE_DIR``).
 """
 
@@ -105,6 +105,8 @@ MOVING_ENTRIES = 16
 _MOVING: OrderedDict = OrderedDict()
 GEOMETRY_ENTRIES = 32
 _GEOMETRY: OrderedDict = OrderedDict()
+REFERENCE_ENTRIES = 32  # a robot's newest map and its moved copies, for a 16-robot team's cycle
+_REFERENCE: OrderedDict = OrderedDict()
 
 
 def _hit(store: OrderedDict, key, owner):
@@ -138,6 +140,13 @@ def moving_side(grid, key: tuple, factory):
     """Arrays that depend on the moving map alone (and ``key``: its center, the ROI), kept for the
     last ``MOVING_ENTRIES`` maps: a map is the moving map of several searches of a merge cycle."""
     return _kept(_MOVING, (id(grid),) + key, grid, factory, MOVING_ENTRIES)
+
+
+def reference_side(grid, key: tuple, factory):
+    """Arrays that depend on the reference map alone (and ``key``: its center, the ROI, the window, the measure's
+    count table), kept for the last ``REFERENCE_ENTRIES`` of them: a map version is the reference of several
+    pairs, each searched and then re-verified."""
+    return _kept(_REFERENCE, (id(grid),) + key, grid, factory, REFERENCE_ENTRIES)
 
 
 def moving_side_kept(grid, key: tuple):
@@ -180,11 +189,12 @@ def frontier(problem):
 
 
 def clear_all() -> None:
-    """Forget every cache the merger keeps between calls: the search's searchers, moving-map arrays,
-    reference geometries and frontiers. A merge cycle's :class:`merger.team.memo.Memo` belongs to its
+    """Forget every cache the merger keeps between calls: the search's searchers, moving-map and reference-map
+    arrays, reference geometries and frontiers. A merge cycle's :class:`merger.team.memo.Memo` belongs to its
     caller and goes with it."""
     with _LOCK:
         _FRONTIERS.clear()
         _SEARCHERS.clear()
         _MOVING.clear()
         _GEOMETRY.clear()
+        _REFERENCE.clear()

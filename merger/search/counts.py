@@ -186,3 +186,18 @@ def values_at(t, dense, pocc, n_occ, n_free, ai, bi, r, out):
             agr, dis = exact_counts_sparse(t, pocc, n_occ, ai[x], bi[x], r)
             ff = 0
         out[x] = value_of(code, floor, agr, dis, ff, tsum[bi[x] * side + ai[x]], sy, nn)
+
+
+@njit(cache=True, nogil=True)
+def values_at_rotations(t, rots, mark, gen, dense, pocc, ai, bi, out):
+    """:func:`values_at` at one translation index (``ai``, ``bi``: arrays of one) for each rotation of
+    ``rots`` (R(−θ) entries per row), into ``out``: the moving ROI of each angle as :meth:`Searcher.values`
+    builds it (dense with free/free, else its occupied points; ``mark``/``gen`` as for
+    :func:`sparse_moving`, ``gen`` an array of one advanced here)."""
+    for x in range(rots.shape[0]):
+        if t.need_ff:
+            no, nf = fill_moving(t, rots[x], dense, pocc)
+        else:
+            gen[0] += 1
+            no, nf = sparse_moving(t, rots[x], mark, gen[0], pocc), 0
+        values_at(t, dense, pocc, no, nf, ai, bi, rots[x], out[x:x + 1])

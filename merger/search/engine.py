@@ -40,19 +40,15 @@ FRONTIER_KEEP = 0.12  # the fast search keeps its frontier within this of its in
 
 
 def fine_answer(s: Searcher, th_c: float, tc):
-    """The thesis's refinement at translation ``tc`` by the branch and bound: the first maximum of 0.1°
-    over θc ± 1° — (angles, their scores, index of the answer, its value and counts). The scores are
-    exact wherever a bound reaches the best (a plateau of equal scores is exact), elsewhere bounds below
-    it (the sub-cell refinement reads only the plateau)."""
+    """The thesis's refinement at translation ``tc``: the first maximum of 0.1° over θc ± 1° — (angles, their
+    exact scores, index of the answer, its value and counts). Every score is computed (21 exact values at one
+    translation cost less than bounding them: a branch and bound over them bounded 135 regions, 0.9 ms
+    against 0.15 ms, in the 16-robot hall)."""
     angles = fine_angles(th_c)
-    best, env = s.run(angles, tmask=s.translation_mask([tc]), sector0=angles.size)
-    kf = best.angle
+    vals = s.values_at_angles(angles, tc)
+    kf = int(np.argmax(vals))
     value, counts = s.exact(float(angles[kf]), *tc)
-    vals = env.copy()
     vals[kf] = value
-    for x in np.flatnonzero(env >= value):
-        if x != kf:
-            vals[x] = s.values(float(angles[x]), [tc])[0]
     return angles, vals, kf, value, counts
 
 

@@ -251,20 +251,13 @@ class Prepared:
         rlo, rhi, rbase, rdev, rmult, self.ilo, self.ihi, self._wr, self._skip_r = ax_r
         self.axes_c = np.array([cbase, cdev, cmult, clo], np.int64)
         self.axes_r = np.array([rbase, rdev, rmult, rlo], np.int64)
-        if self.empty_ref:
-            self.qr = self.qc = np.zeros(0, np.int64)
-        else:
-            qr, qc = np.nonzero(self.ref[rlo:rhi + 1, clo:chi + 1] == OCCUPIED_S)
-            self.qr, self.qc = qr.astype(np.int64) + rlo, qc.astype(np.int64) + clo
-        self.blk, self.lvl_start = self._blocks()
-        # the readable reference cells' (occupied << 32 | free) summed-area table (the moving side's bound)
-        # (rotation only: no box of translations, never read)
-        self.ref_sat = class_sat(self.ref, rlo, rhi + 1, clo, chi + 1) if self.k > 0 and not self.empty_ref \
-            else np.zeros((2, 2), np.int64)
-        # per translation, how many lattice rows (columns) read each occupied cell: exact weights of small
-        # boxes when the ROI is not a plain block (Lemma 3)
-        self.wr0 = np.ascontiguousarray((self.ihi - self.ilo)[:, self.qr - rlo].astype(np.int8))
-        self.wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
+        self._last = (int(rhi), int(chi))  # the last reference row and column some translation reads
+        # the reference side: a function of the reference map, its center, n, k and the measure's sums alone,
+        # kept per reference map (a map version is the reference of up to N − 1 pairs, each searched and then
+        # re-verified locally: in the 16-robot hall these arrays were 3% of the run)
+        (self.qr, self.qc, self.blk, self.blkf, self.lvl_start, self.ref_sat, self.wr0, self.wc0,
+         self.tsum) = caches.reference_side(ref, (tuple(map(float, problem.center_ref)), n, self.k,
+                                                  self.measure.sums), self._reference_side)
         ms = np.ascontiguousarray(mov.states)
         self.mstates = ms
         half = half_side(n, self.res)
@@ -272,7 +265,6 @@ class Prepared:
         self.cls_sat = caches.moving_side(mov, ("sat",), lambda: class_sat(ms, 0, ms.shape[0], 0, ms.shape[1]))
         self.occ_x, self.occ_y = occupied_centres(problem)
         self.rank = rank_table(self.k)
-        self.tsum = self._tsum()
         self.half = half
         ms_ = self.measure
         self.tables = Tables(
@@ -287,6 +279,28 @@ class Prepared:
         """The moving side's geometry (resolution, origin, center, half side): a key of its cached arrays."""
         t = self.tables
         return (t.res_m, t.mox, t.moy, t.mcx, t.mcy, t.half)
+
+    def _reference_side(self) -> tuple:
+        """The reference side's arrays (never written to): its occupied cells that a translation reads (qr, qc), their
+        blocks (:meth:`_blocks`), the readable cells' class summed-area table, the per-translation read counts
+        of each occupied cell (wr0, wc0) and the count table per translation (:meth:`_tsum`)."""
+        rlo, clo = int(self.axes_r[3]), int(self.axes_c[3])
+        rhi, chi = self._last
+        if self.empty_ref:
+            self.qr = self.qc = np.zeros(0, np.int64)
+        else:
+            qr, qc = np.nonzero(self.ref[rlo:rhi + 1, clo:chi + 1] == OCCUPIED_S)
+            self.qr, self.qc = qr.astype(np.int64) + rlo, qc.astype(np.int64) + clo
+        blk, lvl_start, blkf = self._blocks()
+        # the readable reference cells' (occupied << 32 | free) summed-area table (the moving side's bound)
+        # (rotation only: no box of translations, never read)
+        ref_sat = class_sat(self.ref, rlo, rhi + 1, clo, chi + 1) if self.k > 0 and not self.empty_ref \
+            else np.zeros((2, 2), np.int64)
+        # per translation, how many lattice rows (columns) read each occupied cell: exact weights of small
+        # boxes when the ROI is not a plain block (Lemma 3)
+        wr0 = np.ascontiguousarray((self.ihi - self.ilo)[:, self.qr - rlo].astype(np.int8))
+        wc0 = np.ascontiguousarray((self.jhi - self.jlo)[:, self.qc - clo].astype(np.int8))
+        return self.qr, self.qc, blk, blkf, lvl_start, ref_sat, wr0, wc0, self._tsum()
 
     def _blocks(self):
         """The occupied cells pooled in blocks of 2^l cells, levels 0..LEVELS−1: per block its first row
@@ -309,8 +323,8 @@ class Prepared:
         m = (self.n - 1) / 2.0
         bx = ((blk[:, 1:2] + half - self.axes_c[0]) - m) * self.res
         by = ((blk[:, 0:1] + half - self.axes_r[0]) - m) * self.res
-        self.blkf = np.ascontiguousarray(np.concatenate([bx, by, np.hypot(bx, by)], axis=1).astype(np.float64))
-        return blk, np.array(starts, np.int64)
+        blkf = np.ascontiguousarray(np.concatenate([bx, by, np.hypot(bx, by)], axis=1).astype(np.float64))
+        return blk, np.array(starts, np.int64), blkf
 
     def _tsum(self) -> np.ndarray:
         """Per translation (b·side + a): the reference ROI's occupied (NCC) or free (Birk–Carpin) points."""

@@ -18,7 +18,14 @@ from .. import caches
 from ..lattice import rotation_entries
 from ..measures import Counts, uppers
 from .bnb import INCUMBENT, Query, Work, branch_and_bound
-from .counts import exact_counts, fill_moving, moving_points_all, sparse_moving, values_at
+from .counts import (
+    exact_counts,
+    fill_moving,
+    moving_points_all,
+    sparse_moving,
+    values_at,
+    values_at_rotations,
+)
 from .polar import angle_bounds, polar_tables
 from .prepared import Prepared
 
@@ -212,8 +219,18 @@ class Searcher:
             return out
 
     def values_at_angles(self, angles, t) -> np.ndarray:
-        """Exact values at one translation ``t`` (cells) for each of ``angles``."""
-        return np.array([self.values(float(a), [t])[0] for a in angles], np.float64)
+        """Exact values at one translation ``t`` (cells) for each of ``angles``: :meth:`values` at each, in one
+        compiled call."""
+        angles = np.asarray(angles, np.float64).reshape(-1)
+        with self.lock:
+            p, w = self.p, self.work
+            rots = np.array([rotation_entries(float(a)) for a in angles], np.float64).reshape(-1, 4)
+            pocc = np.empty(p.n * p.n, np.int32)
+            dense = np.empty(p.n * p.n if p.measure.needs_free_agree else 0, np.uint8)
+            out = np.empty(angles.size)
+            values_at_rotations(p.tables, rots, w.mark, w.gen, dense, pocc, np.array([t[0] + p.k], np.int64),
+                                np.array([t[1] + p.k], np.int64), out)
+            return out
 
     def polar_bounds(self) -> np.ndarray:
         """Rotation only: an upper bound of the value at every whole-degree angle (Lemma 6)."""

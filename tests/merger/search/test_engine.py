@@ -26,6 +26,8 @@ from merger.search import (
     searcher_for,
     spec_search,
 )
+from merger.search.engine import fine_answer
+from merger.search.problem import fine_angles
 from merger.synthetic import window_case
 from tests.strategies import adversarial_problem, random_grid
 
@@ -35,6 +37,22 @@ MEASURES = ("similarity", "birk_carpin", "ncc")
 def _key(al):
     c = al.counts
     return (al.theta_deg, al.cells, al.score, c.agree, c.disagree)
+
+
+@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**6), measure=st.sampled_from(MEASURES), window=st.booleans(),
+       th_c=st.integers(0, 359), pick=st.integers(0, 10**6))
+def test_the_fine_answer_is_the_first_maximum_of_the_exact_values(seed, measure, window, th_c, pick):
+    """0.1° over θc ± 1° at one translation: every score exact, the first maximum, its value and counts exact()'s."""
+    p = adversarial_problem(seed, measure, window)
+    s = searcher_for(p)
+    k = p.window_cells
+    tc = (pick % (2 * k + 1) - k, (pick // (2 * k + 1)) % (2 * k + 1) - k)
+    angles, vals, kf, value, counts = fine_answer(s, float(th_c), tc)
+    want = np.array([s.values(float(a), [tc])[0] for a in fine_angles(float(th_c))])
+    assert np.array_equal(angles, fine_angles(float(th_c)))
+    assert kf == int(np.argmax(want)) and (value, counts) == s.exact(float(angles[kf]), *tc)
+    assert np.array_equal(np.delete(vals, kf), np.delete(want, kf)) and vals[kf] == value
 
 
 @pytest.mark.slow

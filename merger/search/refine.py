@@ -259,7 +259,7 @@ def _mean_read(field, px, py, th_deg, tx, ty, base0, base1, res, block, buf):
 @njit(cache=True, nogil=True)
 def _pattern_search(field, px, py, base0, base1, res, x, lo, hi, step, ndims, block):
     """:func:`_smooth_refine`'s pattern search compiled (the same candidates, order, scores and tests as its
-    numpy form: the same answer, bit for bit; the GIL released). Returns (θ°, tx, ty)."""
+    Python loop: the same answer, bit for bit; the GIL released). Returns (θ°, tx, ty)."""
     x = x.copy()
     step = step.copy()
     buf = np.empty(px.size, np.float64)

@@ -155,6 +155,8 @@ def _first_keys(amask, tmask, rank, side, mode, reg):
         if amask[x]:
             amin = x
             break
+    if amin < 0:  # no angle allowed: the box is not read (a local search's 353 other sectors × the window)
+        return -1, -1
     rmin = NO_RANK
     for b in range(reg[4], reg[5] + 1):
         for a in range(reg[2], reg[3] + 1):

@@ -105,7 +105,8 @@ MOVING_ENTRIES = 16
 _MOVING: OrderedDict = OrderedDict()
 GEOMETRY_ENTRIES = 32
 _GEOMETRY: OrderedDict = OrderedDict()
-REFERENCE_ENTRIES = 32  # a robot's newest map and its moved copies, for a 16-robot team's cycle
+REFERENCE_ENTRIES = 32  # hall16's first 20 s: 45% of its searchers found their reference side kept (most misses are
+# pairs' own copies of the older map, teammates moved on: merger.team.tree.at_one_instant)
 _REFERENCE: OrderedDict = OrderedDict()
 
 

@@ -42,8 +42,8 @@ FRONTIER_KEEP = 0.12  # the fast search keeps its frontier within this of its in
 def fine_answer(s: Searcher, th_c: float, tc):
     """The thesis's refinement at translation ``tc``: the first maximum of 0.1° over θc ± 1° — (angles, their
     exact scores, index of the answer, its value and counts). Every score is computed (21 exact values at one
-    translation cost less than bounding them: a branch and bound over them bounded 135 regions, 0.9 ms
-    against 0.15 ms, in the 16-robot hall)."""
+    translation cost less than bounding them: on 117 problems of the 16-robot hall a branch and bound over them
+    bounded 135 regions in 0.9 ms, the 21 values took 0.33 ms)."""
     angles = fine_angles(th_c)
     vals = s.values_at_angles(angles, tc)
     kf = int(np.argmax(vals))

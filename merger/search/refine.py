@@ -45,6 +45,31 @@ def _fma32(typingctx, a, b, c):
     return types.float32(types.float32, types.float32, types.float32), codegen
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _read(field, px, py, c, s, bx, by, res):
+    """One read of :func:`_field_reads`: point (px, py) under the candidate (c, s, bx, by)."""
+    h, w = field.shape
+    x = np.float32(((c * px - s * py) + bx) / res - 0.5)
+    y = np.float32(((s * px + c * py) + by) / res - 0.5)
+    fx, fy = math.floor(x), math.floor(y)
+    ax, ay = np.float32(x - np.float32(fx)), np.float32(y - np.float32(fy))
+    ix, iy = int(fx), int(fy)
+    v00 = v01 = v10 = v11 = np.float32(0.0)
+    if 0 <= iy < h:
+        if 0 <= ix < w:
+            v00 = field[iy, ix]
+        if 0 <= ix + 1 < w:
+            v01 = field[iy, ix + 1]
+    if 0 <= iy + 1 < h:
+        if 0 <= ix < w:
+            v10 = field[iy + 1, ix]
+        if 0 <= ix + 1 < w:
+            v11 = field[iy + 1, ix + 1]
+    top = _fma32(ax, np.float32(v01 - v00), v00)
+    bottom = _fma32(ax, np.float32(v11 - v10), v10)
+    return _fma32(ay, np.float32(bottom - top), top)
+
+
 @njit(cache=True, nogil=True)
 def _field_reads(field, px, py, cs, sn, bx, by, res):
     """The refinement's reads of ``field`` (float32) for each candidate k and point j: bilinear at the pixel
@@ -55,30 +80,10 @@ def _field_reads(field, px, py, cs, sn, bx, by, res):
     with FMA the values equal cv2.remap's bit for bit (416,000 reads compared when this replaced it; older
     OpenCV reads with 1/32-pixel weights). No coordinate arrays: in the 16-robot hall they were 45% of the
     refinement's time, which was 13% of the run's."""
-    h, w = field.shape
     out = np.empty((cs.size, px.size), np.float32)
     for k in range(cs.size):
-        c, s, x0, y0 = cs[k], sn[k], bx[k], by[k]
         for j in range(px.size):
-            x = np.float32(((c * px[j] - s * py[j]) + x0) / res - 0.5)
-            y = np.float32(((s * px[j] + c * py[j]) + y0) / res - 0.5)
-            fx, fy = math.floor(x), math.floor(y)
-            ax, ay = np.float32(x - np.float32(fx)), np.float32(y - np.float32(fy))
-            ix, iy = int(fx), int(fy)
-            v00 = v01 = v10 = v11 = np.float32(0.0)
-            if 0 <= iy < h:
-                if 0 <= ix < w:
-                    v00 = field[iy, ix]
-                if 0 <= ix + 1 < w:
-                    v01 = field[iy, ix + 1]
-            if 0 <= iy + 1 < h:
-                if 0 <= ix < w:
-                    v10 = field[iy + 1, ix]
-                if 0 <= ix + 1 < w:
-                    v11 = field[iy + 1, ix + 1]
-            top = _fma32(ax, np.float32(v01 - v00), v00)
-            bottom = _fma32(ax, np.float32(v11 - v10), v10)
-            out[k, j] = _fma32(ay, np.float32(bottom - top), top)
+            out[k, j] = _read(field, px[j], py[j], cs[k], sn[k], bx[k], by[k], res)
     return out
 
 
@@ -100,6 +105,7 @@ def square_crop(grid, center, reach: float):
 REFINE_SIGMA_CELLS = 1.0  # the smoothing of the reference's occupied cells (a likelihood field)
 REFINE_MAX_DEG = 1.0  # the refinement stays within the thesis's fine window (±1°) of the grid angle ...
 REFINE_MAX_CELLS = 1.0  # ... and within one cell of the grid translation (and inside the window)
+REFINE_ROUNDS = 200  # the pattern search's most rounds
 
 
 def _plateau_middle(angles: np.ndarray, vals: np.ndarray, i: int) -> float:
@@ -206,8 +212,6 @@ def _smooth_refine(problem, theta0: float, t0, kernel: bool = True) -> tuple[flo
     return float(x[0]), (float(x[1]), float(x[2]))
 
 
-REFINE_ROUNDS = 200  # the pattern search's most rounds
-
 
 @njit(cache=True, nogil=True)
 def _pairwise_sum(a, lo, n):
@@ -246,10 +250,9 @@ def _mean_read(field, px, py, th_deg, tx, ty, base0, base1, res, block, buf):
     """The refinement's score at (θ°, tx, ty): the mean of :func:`_field_reads` over the points, summed as
     :func:`_block_means` sums them."""
     th = np.radians(th_deg)
-    reads = _field_reads(field, px, py, np.array([math.cos(th)]), np.array([math.sin(th)]),
-                         np.array([base0 + tx]), np.array([base1 + ty]), res)
+    c, sn, bx, by = math.cos(th), math.sin(th), base0 + tx, base1 + ty
     for j in range(px.size):
-        buf[j] = np.float64(reads[0, j])
+        buf[j] = np.float64(_read(field, px[j], py[j], c, sn, bx, by, res))
     total = 0.0
     for j in range(0, px.size, block):
         total += _pairwise_sum(buf, j, min(block, px.size - j))

@@ -224,7 +224,7 @@ class Searcher:
         angles = np.asarray(angles, np.float64).reshape(-1)
         with self.lock:
             p, w = self.p, self.work
-            rots = np.array([rotation_entries(float(a)) for a in angles], np.float64).reshape(-1, 4)
+            rots = _rot(angles)
             pocc = np.empty(p.n * p.n, np.int32)
             dense = np.empty(p.n * p.n if p.measure.needs_free_agree else 0, np.uint8)
             out = np.empty(angles.size)

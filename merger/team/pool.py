@@ -3,7 +3,13 @@
 The search kernels release the GIL (numba ``nogil=True``), so threads use every core. Results come back
 in input order and each task is a pure function of its inputs, so a cycle's result is the same whatever
 the scheduling and the number of threads (``MERGER_THREADS``, default: the machine's cores; 1: none).
-A task that itself asks for the pool runs its work in its own thread (no nested waits on the pool).
+
+A call's items form a batch. The caller computes items itself, and helpers on the pool's threads take
+the next item not yet started, as they come free: a call made inside a pooled task (a robot's cycle,
+whose pairs are a batch of their own) never waits for an item no thread has started, so nested calls
+cannot deadlock, and a thread that finishes its own work early helps with the other batches'. Before,
+a nested call ran its items one after the other on its thread: a simulated tick whose robots' cycles
+were unequal left cores idle while the longest cycle's pairs ran alone (docs/performance-history.md).
 """
 
 from __future__ import annotations
@@ -15,7 +21,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 _LOCK = threading.Lock()
 _POOL: ThreadPoolExecutor | None = None
-_INSIDE = threading.local()
 
 
 def max_threads() -> int:
@@ -49,18 +54,54 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL
 
 
-def _run(fn, item):
-    _INSIDE.active = True
-    try:
-        return fn(item)
-    finally:
-        _INSIDE.active = False
+class _Batch:
+    """One call's items: the next not yet started is taken under a lock, by the caller or a helper."""
+
+    def __init__(self, fn: Callable, items: list) -> None:
+        self.fn, self.items = fn, items
+        self.out: list = [None] * len(items)
+        self.err: list = [None] * len(items)
+        self.next = 0
+        self.left = len(items)
+        self.cond = threading.Condition(threading.Lock())
+
+    def help(self) -> None:
+        """Compute items until none is left to start."""
+        while True:
+            with self.cond:
+                k = self.next
+                if k >= len(self.items):
+                    return
+                self.next = k + 1
+            try:
+                self.out[k] = self.fn(self.items[k])
+            except BaseException as e:  # re-raised by the caller, in order
+                self.err[k] = e
+            with self.cond:
+                self.left -= 1
+                if self.left == 0:
+                    self.cond.notify_all()
+
+    def wait(self) -> None:
+        with self.cond:
+            while self.left > 0:
+                self.cond.wait()
 
 
 def parallel_map(fn: Callable, items: Iterable) -> list:
-    """``[fn(x) for x in items]``, computed on the pool (in order; exceptions re-raised in order)."""
+    """``[fn(x) for x in items]``, computed by the caller and the pool's threads (in order; the first
+    exception, in the items' order, re-raised)."""
     items = list(items)
-    if len(items) < 2 or threads() < 2 or getattr(_INSIDE, "active", False):
+    n = threads()
+    if len(items) < 2 or n < 2:
         return [fn(x) for x in items]
-    futures = [_pool().submit(_run, fn, x) for x in items]
-    return [f.result() for f in futures]
+    batch = _Batch(fn, items)
+    pool = _pool()
+    for _ in range(min(n, len(items)) - 1):
+        pool.submit(batch.help)
+    batch.help()
+    batch.wait()
+    for e in batch.err:
+        if e is not None:
+            raise e
+    return batch.out

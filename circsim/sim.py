@@ -18,10 +18,11 @@ not change the maps' deliveries); after the tick's merge cycles each robot weigh
 (:meth:`merger.TeamMerger.consider`), and an adopted hypothesis is judged like an accepted cycle.
 
 The tick's merge cycles (the robots' side by side on the merger's pool, :mod:`merger.team.pool`) run on a
-thread of their own while the next tick's robots move, scan and map
-(the world never reads a merge; a cycle reads only maps already published), and are judged and told to
-the observers before that tick's events: the same events in the same order as one thread would give
-(with ``merger.share_hypotheses``, or ``MERGER_THREADS=1``, the cycles run in the tick itself).
+thread of their own while the next tick's robots move, scan and map — and, while the cycles still run,
+the ticks after it (up to ``LOOKAHEAD_TICKS``; the world never reads a merge; a cycle reads only maps
+already published) —, and are judged and told to the observers before that tick's events: the same
+events in the same order as one thread would give (with ``merger.share_hypotheses``, or
+``MERGER_THREADS=1``, the cycles run in the tick itself).
 
 Randomness: one ``numpy.random.SeedSequence(seed)`` is split into independent streams per purpose
 and robot (laser noise, SLAM drift, network, center error, publish phases), so the same scenario and
@@ -34,6 +35,7 @@ import math
 import signal
 import threading
 import time
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -57,6 +59,7 @@ from .world.laser import scan as laser_scan
 from .world.motion import CircleTrajectory, trajectories
 from .world.world import World
 
+LOOKAHEAD_TICKS = 20  # the world's ticks computed ahead while a tick's merge cycles run (Simulation._run_ahead)
 PATH_PERIOD_S = 0.25  # a robot's path travels with its map (merger.team.consensus), one pose per this
 
 
@@ -125,6 +128,15 @@ def run_params(sc: Scenario) -> dict:
             "laser_noise_std_m": sc.laser.noise_std_m}
 
 
+@dataclass
+class _WorldTick:
+    """One tick of the world (:meth:`Simulation._world_tick`): the robots' ticks and the maps published."""
+
+    k: int
+    ticks: list
+    published: dict  # robot -> (MapMessage, its SLAM's map frame in W)
+
+
 class Simulation:
     """A run of one scenario. ``Simulation(sc, observers).run()`` returns the :class:`RunResult`."""
 
@@ -147,6 +159,8 @@ class Simulation:
         # the last tick's merge cycles, running while this tick's robots scan: (t, [(robot, trigger)], future)
         self._pending = None
         self._cycles_thread: ThreadPoolExecutor | None = None
+        self._ahead: deque[_WorldTick] = deque()  # the world's next ticks, computed while cycles ran
+        self._last_k = -1  # the run's last tick (set by run: nothing is computed ahead before)
         self._stop = lambda: False  # Ctrl-C pressed (set by run)
         err_rng = np.random.default_rng(next(streams))
         phase_rng = np.random.default_rng(next(streams))
@@ -201,9 +215,10 @@ class Simulation:
     def pose(self, robot: Robot, t: float):
         return robot.traj.pose_at(t) if self.scenario.robots.motion == "online" else robot.traj.start_pose()
 
-    def step(self, k: int, t: float) -> bool:
-        """One tick; False when Ctrl-C came while the last tick's cycles were told (the run then ends
-        with that tick: nothing of this one reaches the observers)."""
+    def _world_tick(self, k: int, t: float) -> _WorldTick:
+        """Tick ``k`` (at ``t``) of the world alone: every robot moves, scans and maps, and publishes its map
+        when its period has come (the map message, with its SLAM's frame). Nothing here reads a merge or
+        the network, so ticks can be computed ahead of the merge cycles (:meth:`_run_ahead`)."""
         sc = self.scenario
         poses = {n: self.pose(r, t) for n, r in self.robots.items()}
         for n, p in poses.items():
@@ -216,11 +231,38 @@ class Simulation:
                 r.path.append((t, float(est[0]), float(est[1])))
             ticks.append(RobotTick(n, tuple(poses[n]), tuple(est), self._est_in_world(n, est),
                                    self.arc_deg(n, t), s))
+        published = {}
+        for n, r in self.robots.items():
+            if t + 1e-9 >= r.next_publish_s and r.slam.updates:
+                r.next_publish_s += sc.slam.publish_period_s
+                published[n] = (MapMessage(n, t, r.slam.grid(), r.center_given, self._path_until(r, t)),
+                                tuple(r.slam.map_frame_estimate()))
+        return _WorldTick(k, ticks, published)
+
+    def _run_ahead(self, k: int) -> None:
+        """While the last tick's merge cycles run, the world's next ticks (at most :data:`LOOKAHEAD_TICKS`,
+        not past the run's last tick): the main thread would otherwise wait idle. The world never reads a
+        merge, so a tick computed ahead is the tick computed in its turn; its events are told in their
+        turn."""
+        pending = self._pending
+        nxt = k + 1 + len(self._ahead)
+        while (pending is not None and not pending[2].done() and len(self._ahead) < LOOKAHEAD_TICKS
+               and nxt <= self._last_k):
+            self._ahead.append(self._world_tick(nxt, nxt * self.scenario.dt_s))
+            nxt += 1
+
+    def step(self, k: int, t: float) -> bool:
+        """One tick; False when Ctrl-C came while the last tick's cycles were told (the run then ends
+        with that tick: nothing of this one reaches the observers)."""
+        world = self._ahead.popleft() if self._ahead else self._world_tick(k, t)
+        if world.k != k:
+            raise RuntimeError(f"tick {k} stepped while tick {world.k} was next (the world runs ahead: step in order)")
+        self._run_ahead(k)
         self._finish_merges()  # the last tick's cycles (they ran while these robots scanned)
         if self._stop():
             return False
-        self._emit("on_tick", t, k, ticks)
-        self._exchange(t)
+        self._emit("on_tick", t, k, world.ticks)
+        self._exchange(t, world.published)
         jobs = []
         for r in self.robots.values():
             period = r.settled_period_s if r.settled else r.cycle_period_s
@@ -266,13 +308,13 @@ class Simulation:
         c, si = math.cos(s.yaw), math.sin(s.yaw)
         return (s.x + c * est[0] - si * est[1], s.y + si * est[0] + c * est[1], s.yaw + est[2])
 
-    def _exchange(self, t: float) -> None:
+    def _exchange(self, t: float, published: dict) -> None:
+        """The tick's maps: each robot's own published map (``published``: per robot, its map message and
+        its SLAM's frame, from :meth:`_world_tick`) and the network's sends and deliveries."""
         eps = 1e-9
         for n, r in self.robots.items():
-            if t + eps >= r.next_publish_s and r.slam.updates:
-                r.next_publish_s += self.scenario.slam.publish_period_s
-                msg = MapMessage(n, t, r.slam.grid(), r.center_given, self._path_until(r, t))
-                self.map_frames[n][t] = tuple(r.slam.map_frame_estimate())
+            if n in published:
+                msg, self.map_frames[n][t] = published[n]
                 r.merger.receive(msg)
                 r.inbox_new.append(n)
                 self._emit("on_map_published", t, n, msg.grid, r.center_given, r.center_true)
@@ -361,6 +403,7 @@ class Simulation:
         has seen the same events); a second Ctrl-C interrupts at once."""
         sc = self.scenario
         n_steps = int(math.floor(sc.duration_s / sc.dt_s + 1e-9))
+        self._last_k = n_steps
         self._emit("on_start", self)
         t0 = time.perf_counter()
         if not self.share and merger_threads() >= 2:

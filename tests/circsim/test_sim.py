@@ -279,6 +279,59 @@ def test_cycles_beside_the_next_tick_tell_the_same_events_in_the_same_order_as_o
     assert one == two
 
 
+def test_the_world_computed_ahead_of_slow_cycles_tells_the_same_events(monkeypatch):
+    """While a tick's merge cycles run, the main thread computes the world's next ticks (robots move, scan,
+    map and publish: nothing there reads a merge). Made slow, the cycles leave it time to: the ticks it
+    computed ahead, the maps they published and every cycle reach the observers as in one thread."""
+    import time
+
+    import circsim.sim as S
+    from merger.team.online import TeamMerger
+
+    cycle = TeamMerger.cycle
+
+    def slow_cycle(self, *a, **k):
+        time.sleep(0.03)
+        return cycle(self, *a, **k)
+
+    monkeypatch.setattr(TeamMerger, "cycle", slow_cycle)
+    world_tick = S.Simulation._world_tick
+
+    def events(threads):
+        monkeypatch.setenv("MERGER_THREADS", threads)
+        seen, ahead = [], []
+
+        def counted(sim, k, t):
+            ahead.append(k > sim.result.sim_s / sim.scenario.dt_s + 1.5)  # beyond the tick being stepped
+            return world_tick(sim, k, t)
+
+        monkeypatch.setattr(S.Simulation, "_world_tick", counted)
+
+        class Log(Observer):
+            def on_tick(self, t, k, ticks):
+                seen.append(("tick", k, tuple((r.name, r.true_pose, r.est_pose, r.scan.ranges.tobytes())
+                                              for r in ticks)))
+
+            def on_map_published(self, t, robot, grid, center_given, center_true):
+                seen.append(("published", t, robot, grid.states.tobytes(), center_given))
+
+            def on_map_received(self, t, recipient, sender, sent_s, stale=False):
+                seen.append(("received", t, recipient, sender, sent_s, stale))
+
+            def on_merge_cycle(self, c):
+                seen.append(("cycle", c.t, c.robot, c.trigger, c.result.accepted, c.correct,
+                             tuple(sorted(c.result.top.theta_deg.items())), c.first_correct))
+
+        res = Simulation(scene("hall4", "duration_s=5", "merger.window_m=0.5", "merger.strategy=tree",
+                               "center_error=0.15"), [Log()]).run()
+        return seen, res.to_dict()["false_merges"], sum(ahead)
+
+    one, two = events("1"), events("2")
+    assert one[2] == 0 and two[2] > 10  # one thread never runs ahead; beside slow cycles the world does
+    assert sum(e[0] == "cycle" for e in one[0]) > 5 and sum(e[0] == "published" for e in one[0]) > 10
+    assert one[:2] == two[:2]
+
+
 def test_the_assembly_s_rejections_reach_the_metrics_and_the_run_log_once(monkeypatch):
     """Every tree cycle's consensus assembly (merger.team.consensus) is counted in the robot's metrics, and
     a rejected pair is told in the run log when it is newly rejected, not at every cycle."""

@@ -9,8 +9,11 @@ A :class:`Memo` computes each once and hands the same result to the others.
 It changes no result (the value is the one the caller would compute: the computations are
 deterministic), only the time a simulation takes. So that a robot's reported merge cost stays the cost it
 would pay alone, each entry keeps the wall time its computation took, and a caller that takes a stored
-result is *charged* that time (:attr:`Memo.charged_ms`, read and reset by the merge cycle;
-:attr:`merger.team.orders.TeamMergeResult.cost_ms`).
+result is *charged* that time (:meth:`Memo.take_charged_ms`, read and reset by the merge cycle;
+:attr:`merger.team.orders.TeamMergeResult.cost_ms`); a caller that waited for another thread's computation
+of it is charged the part it did not wait (its wait is in its own wall time already). Charges go to the
+cycle that asked: a ledger in the caller's context, which :mod:`merger.team.pool` carries to the threads
+that compute the cycle's items (the robots' cycles of a simulated tick run side by side).
 
 Keys are map versions or content digests (:func:`map_key`), never object identities or scans; the memo
 is bounded in entries (an entry may hold grids: an alignment's deferred evidence).
@@ -21,6 +24,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Hashable
+from contextvars import ContextVar
 
 from ..caches import BoundedCache, array_digest
 
@@ -40,13 +44,25 @@ def map_key(m) -> tuple:
     return (m.name, ident, (float(m.center[0]), float(m.center[1])))
 
 
+class _Ledger:
+    """The time charged to one merge cycle (its own threads' charges add up here)."""
+
+    def __init__(self) -> None:
+        self.ms = 0.0
+        self.lock = threading.Lock()
+
+    def add(self, ms: float) -> None:
+        with self.lock:
+            self.ms += ms
+
+
 class Memo:
     """A bounded store of computed results with their cost (see the module documentation)."""
 
     def __init__(self, max_entries: int = MEMO_ENTRIES) -> None:
         # entries are counted, not their bytes: values are merger records (small; their grids are shared)
         self._cache = BoundedCache(max_entries, 2**62)
-        self.charged_ms = 0.0  # time of the stored results handed out since the last reset
+        self._ledger: ContextVar[_Ledger | None] = ContextVar(f"memo_ledger_{id(self)}", default=None)
         self.computed = 0
         self.shared = 0
         self._lock = threading.Lock()  # the counters: a cycle's searches run on threads (merger.team.pool)
@@ -60,12 +76,13 @@ class Memo:
         charges its computation's time to :attr:`charged_ms`. A key another thread is computing is waited
         for, not computed twice (robots whose cycles run side by side ask for the same new pairs: in the
         8-robot hall 12% of the computing time went to such duplicates)."""
+        waited = 0.0
         while True:
             hit = self._cache.get(key)
             if hit is not None:
                 value, ms = hit
+                self._charge(max(ms - waited, 0.0))
                 with self._lock:
-                    self.charged_ms += ms
                     self.shared += 1
                 return value
             with self._lock:
@@ -74,7 +91,9 @@ class Memo:
                     done = self._running[key] = threading.Event()
             if running is None:
                 break
+            t0 = time.perf_counter()
             running.wait()  # then stored (or failed, or already evicted: computed here)
+            waited += (time.perf_counter() - t0) * 1e3
         try:
             t0 = time.perf_counter()
             value = compute()
@@ -87,13 +106,21 @@ class Memo:
             done.set()
         return value
 
+    def _charge(self, ms: float) -> None:
+        ledger = self._ledger.get()
+        if ledger is None:  # no cycle asked for its charges yet: this context's ledger, from now on
+            ledger = _Ledger()
+            self._ledger.set(ledger)
+        ledger.add(ms)
+
     def take_charged_ms(self) -> float:
-        """The charged time since the last call, and reset it."""
-        with self._lock:
-            ms, self.charged_ms = self.charged_ms, 0.0
-        return ms
+        """The time charged to this context (the calling merge cycle and the threads computing its items)
+        since its last call, and a new ledger from now on."""
+        ledger = self._ledger.get()
+        self._ledger.set(_Ledger())
+        return 0.0 if ledger is None else ledger.ms
 
     def clear(self) -> None:
         self._cache.clear()
-        self.charged_ms = 0.0
+        self._ledger.set(None)
         self.computed = self.shared = 0

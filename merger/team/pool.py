@@ -14,6 +14,7 @@ were unequal left cores idle while the longest cycle's pairs ran alone (docs/per
 
 from __future__ import annotations
 
+import contextvars
 import os
 import threading
 from collections.abc import Callable, Iterable
@@ -59,6 +60,9 @@ class _Batch:
 
     def __init__(self, fn: Callable, items: list) -> None:
         self.fn, self.items = fn, items
+        # each item runs in a copy of the caller's context: what the caller set there (the merge cycle's ledger
+        # of charged time, merger.team.memo) reaches every thread that computes one of its items
+        self.ctx = [contextvars.copy_context() for _ in items]
         self.out: list = [None] * len(items)
         self.err: list = [None] * len(items)
         self.next = 0
@@ -74,7 +78,7 @@ class _Batch:
                     return
                 self.next = k + 1
             try:
-                self.out[k] = self.fn(self.items[k])
+                self.out[k] = self.ctx[k].run(self.fn, self.items[k])
             except BaseException as e:  # re-raised by the caller, in order
                 self.err[k] = e
             with self.cond:

@@ -319,7 +319,7 @@ class Tracker:
     def take_events(self) -> list:
         with self._lock:
             out, self.events = self.events, []
-        return out
+        return sorted(out)  # in time, then text: not in the order a cycle's threads happened to finish
 
     def stats(self) -> dict:
         """Per track: global searches, local re-verifications, switches and its answers' jumps (:func:`jump_summary`)."""

@@ -60,4 +60,78 @@ def test_the_memo_is_bounded():
     assert memo.get(19, lambda: -1) == 361  # recent entries stay
     assert memo.get(0, lambda: -1) == -1  # old ones were evicted: computed again
     memo.clear()
-    assert len(memo) == 0 and memo.charged_ms == 0.0
+    assert len(memo) == 0 and memo.take_charged_ms() == 0.0
+
+
+def test_a_key_being_computed_is_waited_for_and_charged_only_the_part_not_waited():
+    """Two robots' cycles asking for one new pair at once: it is computed once; the caller that waited for it
+    has the wait in its own wall time already, and is charged only the rest of its computing time."""
+    import threading
+
+    memo = Memo()
+    calls, out = [], {}
+
+    def compute():
+        calls.append(1)
+        time.sleep(0.2)
+        return object()
+
+    def first():
+        memo.take_charged_ms()
+        out["first"] = (memo.get("pair", compute), memo.take_charged_ms())
+
+    def second():
+        memo.take_charged_ms()
+        time.sleep(0.05)  # the first is computing it by now
+        out["second"] = (memo.get("pair", compute), memo.take_charged_ms())
+
+    threads = [threading.Thread(target=first), threading.Thread(target=second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert calls == [1] and out["first"][0] is out["second"][0]
+    assert out["first"][1] == 0.0  # computed it
+    assert 0.0 <= out["second"][1] < 100.0  # waited ~150 of its ~200 ms: charged ~50, not 200
+    assert (memo.computed, memo.shared) == (1, 1)
+
+
+def test_charges_go_to_the_cycle_that_asked_even_from_the_pool_s_threads(monkeypatch):
+    """Robots' cycles run side by side and spread their pairs over the pool's threads: each cycle's charged
+    time is the time of the results it took, not its teammates'. Here b's cycle takes a 200 ms result while
+    a's is between its start and its end."""
+    import threading
+
+    from merger.team.pool import parallel_map
+
+    monkeypatch.setenv("MERGER_THREADS", "2")
+    memo = Memo()
+    for k, ms in enumerate([30, 30, 30, 30, 200]):  # stored results and the time they took
+        memo.get(k, lambda ms=ms: time.sleep(ms / 1e3))
+    memo.take_charged_ms()
+    out, a_started, b_done = {}, threading.Event(), threading.Event()
+
+    def take(k):
+        if k == 3:
+            a_started.set()
+            b_done.wait(5)
+        return memo.get(k, lambda: None)
+
+    def cycle_a():
+        memo.take_charged_ms()  # a cycle's start
+        parallel_map(take, [0, 1, 2, 3])
+        out["a"] = memo.take_charged_ms()
+
+    def cycle_b():
+        a_started.wait(5)
+        memo.take_charged_ms()
+        memo.get(4, lambda: None)
+        out["b"] = memo.take_charged_ms()
+        b_done.set()
+
+    threads = [threading.Thread(target=cycle_a), threading.Thread(target=cycle_b)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert 4 * 25.0 <= out["a"] < 4 * 60.0 and 190.0 <= out["b"] < 300.0

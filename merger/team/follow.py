@@ -20,6 +20,7 @@ from .frames import Warps, compose, merged_on_frame0
 from .memo import Memo
 from .orders import align_order, merge_team, order_result, refine_chosen
 from .params import MapInput, MergeParams, TeamMergeResult
+from .pool import start_clock
 from .track import Tracker, decide
 
 TEAM = "team"
@@ -40,7 +41,7 @@ def mean_nu(result: TeamMergeResult) -> float:
 
 def local_cycle(maps: list[MapInput], params: MergeParams, tracked: TeamMergeResult, memo: Memo | None):
     """The tracked hypothesis's order re-aligned by local searches about its placements and verified."""
-    t0 = time.perf_counter()
+    t0, clock = time.perf_counter(), start_clock()
     names = [m.name for m in maps]
     place = team_placement(tracked)
     order = tuple(names.index(n) for n in tracked.chosen.order)
@@ -54,7 +55,7 @@ def local_cycle(maps: list[MapInput], params: MergeParams, tracked: TeamMergeRes
         chosen, place0 = refine_chosen(maps, place0, warps, params, res)
         merged, layers = merged_on_frame0(maps, place0, warps)
     return TeamMergeResult(maps[0].name, (chosen or res,), chosen, merged, layers, (time.perf_counter() - t0) * 1e3,
-                           "", (), memo.take_charged_ms() if memo is not None else 0.0)
+                           "", (), memo.take_charged_ms() if memo is not None else 0.0, cpu_ms=clock.ms())
 
 
 def merge_team_tracked(maps: list[MapInput], params: MergeParams, tracker: Tracker, now: float, *,

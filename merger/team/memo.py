@@ -8,12 +8,12 @@ A :class:`Memo` computes each once and hands the same result to the others.
 
 It changes no result (the value is the one the caller would compute: the computations are
 deterministic), only the time a simulation takes. So that a robot's reported merge cost stays the cost it
-would pay alone, each entry keeps the wall time its computation took, and a caller that takes a stored
-result is *charged* that time (:meth:`Memo.take_charged_ms`, read and reset by the merge cycle;
-:attr:`merger.team.orders.TeamMergeResult.cost_ms`); a caller that waited for another thread's computation
-of it is charged the part it did not wait (its wait is in its own wall time already). Charges go to the
-cycle that asked: a ledger in the caller's context, which :mod:`merger.team.pool` carries to the threads
-that compute the cycle's items (the robots' cycles of a simulated tick run side by side).
+would pay alone, each entry keeps the CPU time its computation took (:class:`merger.team.pool.CpuClock`: on
+two cores shared by several robots' cycles, wall time measures the others too), and a caller that takes a
+stored result — or waits for another thread computing it — is *charged* that time
+(:meth:`Memo.take_charged_ms`, read and reset by the merge cycle; :attr:`merger.team.orders.TeamMergeResult.cost_ms`).
+Charges go to the cycle that asked: a ledger in the caller's context, which :mod:`merger.team.pool` carries
+to the threads that compute the cycle's items (the robots' cycles of a simulated tick run side by side).
 
 Keys are map versions or content digests (:func:`map_key`), never object identities or scans; the memo
 is bounded in entries (an entry may hold grids: an alignment's deferred evidence).
@@ -21,12 +21,13 @@ is bounded in entries (an entry may hold grids: an alignment's deferred evidence
 
 from __future__ import annotations
 
+import contextvars
 import threading
-import time
 from collections.abc import Callable, Hashable
 from contextvars import ContextVar
 
 from ..caches import BoundedCache, array_digest
+from .pool import start_clock
 
 MEMO_ENTRIES = 256  # a team of 8 holds 28 pairs; a few map versions of each
 
@@ -42,6 +43,12 @@ def map_key(m) -> tuple:
     version identifies the owner's grid: a map message's stamp), else its grid's content; and its center."""
     ident = ("version", m.version) if m.version is not None else grid_key(m.grid)
     return (m.name, ident, (float(m.center[0]), float(m.center[1])))
+
+
+def _timed(compute):
+    """``compute()`` and its CPU time (ms), in a context of its own (its clock does not replace the caller's)."""
+    clock = start_clock()
+    return compute(), clock.ms()
 
 
 class _Ledger:
@@ -72,16 +79,15 @@ class Memo:
         return len(self._cache)
 
     def get(self, key: Hashable, compute: Callable[[], object]):
-        """The stored value of ``key``, or ``compute()`` (stored with its wall time). A stored value
-        charges its computation's time to :attr:`charged_ms`. A key another thread is computing is waited
-        for, not computed twice (robots whose cycles run side by side ask for the same new pairs: in the
+        """The stored value of ``key``, or ``compute()`` (stored with its CPU time). A stored value charges
+        its computation's time to the asking cycle (:meth:`take_charged_ms`). A key another thread is
+        computing is waited for, not computed twice (robots whose cycles run side by side ask for the same new pairs: in the
         8-robot hall 12% of the computing time went to such duplicates)."""
-        waited = 0.0
         while True:
             hit = self._cache.get(key)
             if hit is not None:
                 value, ms = hit
-                self._charge(max(ms - waited, 0.0))
+                self._charge(ms)
                 with self._lock:
                     self.shared += 1
                 return value
@@ -91,13 +97,10 @@ class Memo:
                     done = self._running[key] = threading.Event()
             if running is None:
                 break
-            t0 = time.perf_counter()
             running.wait()  # then stored (or failed, or already evicted: computed here)
-            waited += (time.perf_counter() - t0) * 1e3
         try:
-            t0 = time.perf_counter()
-            value = compute()
-            self._cache.put(key, (value, (time.perf_counter() - t0) * 1e3))
+            value, ms = contextvars.copy_context().run(_timed, compute)
+            self._cache.put(key, (value, ms))
             with self._lock:
                 self.computed += 1
         finally:

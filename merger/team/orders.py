@@ -35,7 +35,7 @@ from .evidence import refine
 from .frames import Warps, compose, merged_on_frame0, place_on_frame0, shifted
 from .memo import Memo, map_key
 from .params import ORIGIN, MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
-from .pool import parallel_map
+from .pool import parallel_map, start_clock
 from .superpose import fuse_grids, superpose
 from .verify import Verification, no_evidence, pairwise, refine_limit_m, refined_placement, verify
 
@@ -189,7 +189,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     evaluate (default :func:`merge_orders`; ``merger align`` gives ``[(0, 1)]``: MOVING searched onto REF,
     with every check of a merge).
     """
-    t0 = time.perf_counter()
+    t0, clock = time.perf_counter(), start_clock()
     if memo is not None:
         memo.take_charged_ms()
     orders = merge_orders(len(maps), [m.name for m in maps]) if orders is None else [tuple(o) for o in orders]
@@ -221,7 +221,7 @@ def merge_team(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
         merged, layers = merged_on_frame0(maps, place, warps)
     return TeamMergeResult(maps[0].name, tuple(results), chosen, merged, layers,
                            (time.perf_counter() - t0) * 1e3, ambiguity, tuple(a for _, _, amb in aligned for a in amb),
-                           memo.take_charged_ms() if memo is not None else 0.0)
+                           memo.take_charged_ms() if memo is not None else 0.0, cpu_ms=clock.ms())
 
 
 def whole_map_guard(maps: list[MapInput], order: tuple[int, ...], params: MergeParams, warps: Warps):

@@ -403,7 +403,9 @@ class TeamMergeResult:
     ``merged`` and ``layers`` may be given as a function (``fuse``) instead: the merged map is then built
     when it is first read (the tree strategy: a robot of a simulation merges several times a second and its
     merged map is drawn once per recording period; its placement, the cycle's decision, never reads it).
-    ``wall_ms`` is the cycle's time without it; :attr:`fuse_ms` the building's, once it is built."""
+    ``wall_ms`` is the cycle's time without it; :attr:`fuse_ms` the building's, once it is built. ``cpu_ms``:
+    the CPU time of the cycle's own computations on every thread (:class:`merger.team.pool.CpuClock`; None:
+    not measured)."""
 
     frame: str
     orders: tuple[OrderResult, ...]
@@ -417,6 +419,7 @@ class TeamMergeResult:
     assembly: AssemblyReport | None = None  # the tree strategy's consensus assembly (:mod:`merger.team.consensus`)
     fuse: Callable[[], tuple[OccupancyGrid, dict[str, OccupancyGrid]]] | None = field(default=None, repr=False)
     fuse_ms: float = 0.0
+    cpu_ms: float | None = None
 
     def _fused(self) -> None:
         fuse = self.fuse
@@ -442,9 +445,10 @@ class TeamMergeResult:
 
     @property
     def cost_ms(self) -> float:
-        """What the cycle costs a robot computing alone: its wall time and the time of the shared results
-        it took (:mod:`merger.team.memo`)."""
-        return self.wall_ms + self.charged_ms
+        """What the cycle costs a robot computing alone: the CPU time of its own computations (its wall time
+        when not measured) and that of the shared results it took (:mod:`merger.team.memo`). Its wall time
+        counts the other robots' cycles running beside it on the same cores; its CPU time does not."""
+        return (self.wall_ms if self.cpu_ms is None else self.cpu_ms) + self.charged_ms
 
     @property
     def reason(self) -> str:
@@ -483,7 +487,7 @@ class TeamMergeResult:
     def to_dict(self) -> dict:
         return {"frame": self.frame, "accepted": self.accepted, "verdict": "accepted" if self.accepted else "rejected",
                 "rule": self.rule, "reason": self.reason, "wall_ms": self.wall_ms,
-                "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
+                "cpu_ms": self.cpu_ms, "charged_ms": self.charged_ms, "cost_ms": self.cost_ms,
                 "ambiguity": self.ambiguity, "ambiguous": [a.to_dict() for a in self.ambiguous],
                 "chosen": self.chosen.to_dict() if self.chosen else None,
                 "assembly": self.assembly.to_dict() if self.assembly is not None else None,

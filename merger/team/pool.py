@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextvars
 import os
 import threading
+import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -55,6 +56,36 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL
 
 
+class CpuClock:
+    """The CPU time of one computation: its own thread's since the clock started, and that of the items it
+    handed to the pool's other threads (:func:`parallel_map`). On a machine busy with other threads a
+    computation's wall time grows; its CPU time is what it would take alone."""
+
+    def __init__(self) -> None:
+        self._t0 = time.thread_time()
+        self._others = 0.0
+        self._lock = threading.Lock()
+
+    def add(self, seconds: float) -> None:
+        with self._lock:
+            self._others += seconds
+
+    def ms(self) -> float:
+        with self._lock:
+            return (time.thread_time() - self._t0 + self._others) * 1e3
+
+
+_CLOCK: contextvars.ContextVar[CpuClock | None] = contextvars.ContextVar("merger_cpu_clock", default=None)
+
+
+def start_clock() -> CpuClock:
+    """A :class:`CpuClock` for what runs in the current context from now on (the items it hands to the pool
+    carry it)."""
+    clock = CpuClock()
+    _CLOCK.set(clock)
+    return clock
+
+
 class _Batch:
     """One call's items: the next not yet started is taken under a lock, by the caller or a helper."""
 
@@ -63,6 +94,7 @@ class _Batch:
         # each item runs in a copy of the caller's context: what the caller set there (the merge cycle's ledger
         # of charged time, merger.team.memo) reaches every thread that computes one of its items
         self.ctx = [contextvars.copy_context() for _ in items]
+        self.caller = threading.get_ident()
         self.out: list = [None] * len(items)
         self.err: list = [None] * len(items)
         self.next = 0
@@ -78,7 +110,11 @@ class _Batch:
                     return
                 self.next = k + 1
             try:
+                clock = None if threading.get_ident() == self.caller else self.ctx[k].get(_CLOCK)
+                t0 = time.thread_time()
                 self.out[k] = self.ctx[k].run(self.fn, self.items[k])
+                if clock is not None:  # an item of the caller's computation, run on another thread
+                    clock.add(time.thread_time() - t0)
             except BaseException as e:  # re-raised by the caller, in order
                 self.err[k] = e
             with self.cond:

@@ -58,7 +58,7 @@ from .frames import Fusion, Warps, compose, shifted
 from .memo import Memo, map_key
 from .orders import beyond_refusal, pair_key, problem_for, refine_chosen
 from .params import MapInput, MergeParams, OrderResult, Placement, TeamMergeResult
-from .pool import parallel_map
+from .pool import parallel_map, start_clock
 from .posegraph import PairResult, adjust, compose_tree, pair_placement, spanning_tree
 from .teammates import centred_faces, map_time, teammates_centred, without_teammates
 from .track import Tracker, agree, decide
@@ -170,7 +170,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
     (``now``: the caller's clock, seconds)."""
     if len(maps) < 2:
         raise ValueError(f"merging needs at least two maps, got {len(maps)}")
-    t0 = time.perf_counter()
+    t0, clock = time.perf_counter(), start_clock()
     if memo is not None:
         memo.take_charged_ms()
     given, maps = maps, _seen(maps, params, memo)  # the team's ring left out of the evidence (merged: kept)
@@ -396,7 +396,7 @@ def merge_tree(maps: list[MapInput], params: MergeParams = MergeParams(), *,  # 
                             {names[k]: v for k, v in team.left_out.items()}, tuple(team.joins))
     return TeamMergeResult(maps[0].name, (result,), chosen, None, {}, (time.perf_counter() - t0) * 1e3,
                            guard, tuple(p.ambiguity for p in pairs.values() if p.ambiguity is not None),
-                           memo.take_charged_ms() if memo is not None else 0.0, report, fusion)
+                           memo.take_charged_ms() if memo is not None else 0.0, report, fusion, cpu_ms=clock.ms())
 
 
 def _seen(maps: list[MapInput], params: MergeParams, memo: Memo | None) -> list[MapInput]:

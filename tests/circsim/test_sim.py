@@ -225,7 +225,7 @@ def test_offline_motion_travels_no_arc():
 def test_sharing_searches_between_robots_changes_no_result(name, sets):
     """The robots of a run share the pair searches they would all compute (merger.team.memo): every merge
     cycle's evidence and every metric is the same as with each robot computing alone, the memo does share
-    results, and a cycle that took shared results is charged their computing time (its cost ≥ its wall)."""
+    results, and a cycle that took shared results is charged their computing time."""
     def run(share):
         cycles = []
 

@@ -9,6 +9,13 @@ from merger.team.memo import Memo, grid_key, map_key
 from merger.team.orders import MapInput
 
 
+def _burn(ms: float) -> None:
+    """Compute for ``ms`` of this thread's CPU time (the memo charges CPU time, not sleep)."""
+    t0 = time.thread_time()
+    while time.thread_time() - t0 < ms / 1e3:
+        pass
+
+
 def _grid(seed: int = 0) -> OccupancyGrid:
     rng = np.random.default_rng(seed)
     return OccupancyGrid(rng.integers(0, 3, (40, 50)).astype(np.uint8), 0.05, (-1.0, -1.25))
@@ -20,7 +27,7 @@ def test_a_result_is_computed_once_and_charged_to_every_later_caller():
 
     def compute():
         calls.append(1)
-        time.sleep(0.02)
+        _burn(20)
         return {"answer": 42}
 
     first = memo.get(("pair", 1), compute)
@@ -63,9 +70,9 @@ def test_the_memo_is_bounded():
     assert len(memo) == 0 and memo.take_charged_ms() == 0.0
 
 
-def test_a_key_being_computed_is_waited_for_and_charged_only_the_part_not_waited():
-    """Two robots' cycles asking for one new pair at once: it is computed once; the caller that waited for it
-    has the wait in its own wall time already, and is charged only the rest of its computing time."""
+def test_a_key_being_computed_is_waited_for_and_charged_its_computing_time():
+    """Two robots' cycles asking for one new pair at once: it is computed once; the one that waited is charged
+    its CPU time as computed (the waiter's own CPU time does not contain it)."""
     import threading
 
     memo = Memo()
@@ -73,7 +80,7 @@ def test_a_key_being_computed_is_waited_for_and_charged_only_the_part_not_waited
 
     def compute():
         calls.append(1)
-        time.sleep(0.2)
+        _burn(200)
         return object()
 
     def first():
@@ -92,7 +99,7 @@ def test_a_key_being_computed_is_waited_for_and_charged_only_the_part_not_waited
         t.join()
     assert calls == [1] and out["first"][0] is out["second"][0]
     assert out["first"][1] == 0.0  # computed it
-    assert 0.0 <= out["second"][1] < 100.0  # waited ~150 of its ~200 ms: charged ~50, not 200
+    assert 190.0 <= out["second"][1] < 400.0
     assert (memo.computed, memo.shared) == (1, 1)
 
 
@@ -106,8 +113,8 @@ def test_charges_go_to_the_cycle_that_asked_even_from_the_pool_s_threads(monkeyp
 
     monkeypatch.setenv("MERGER_THREADS", "2")
     memo = Memo()
-    for k, ms in enumerate([30, 30, 30, 30, 200]):  # stored results and the time they took
-        memo.get(k, lambda ms=ms: time.sleep(ms / 1e3))
+    for k, ms in enumerate([30, 30, 30, 30, 200]):  # stored results and the CPU time they took
+        memo.get(k, lambda ms=ms: _burn(ms))
     memo.take_charged_ms()
     out, a_started, b_done = {}, threading.Event(), threading.Event()
 
@@ -134,4 +141,25 @@ def test_charges_go_to_the_cycle_that_asked_even_from_the_pool_s_threads(monkeyp
         t.start()
     for t in threads:
         t.join()
-    assert 4 * 25.0 <= out["a"] < 4 * 60.0 and 190.0 <= out["b"] < 300.0
+    assert 4 * 28.0 <= out["a"] < 4 * 60.0 and 195.0 <= out["b"] < 300.0
+
+
+def test_a_computation_s_cpu_clock_counts_the_items_it_hands_to_the_pool(monkeypatch):
+    """A cycle's CPU time is its own thread's and that of its items computed on the pool's other threads —
+    not its wall time, which on busy cores also measures the others."""
+    from merger.team.pool import parallel_map, start_clock
+
+    monkeypatch.setenv("MERGER_THREADS", "2")
+    clock = start_clock()
+    parallel_map(lambda _: _burn(40), range(6))
+    assert 6 * 38.0 <= clock.ms() < 6 * 80.0
+    inner = {}
+
+    def item(k):  # an item that starts a clock of its own: the outer clock still counts it once
+        c = start_clock()
+        _burn(30)
+        inner[k] = c.ms()
+
+    clock = start_clock()
+    parallel_map(item, range(4))
+    assert 4 * 28.0 <= clock.ms() < 4 * 60.0 and all(25.0 <= v < 60.0 for v in inner.values())

@@ -21,10 +21,9 @@ is bounded in entries (an entry may hold grids: an alignment's deferred evidence
 
 from __future__ import annotations
 
-import contextvars
 import threading
 from collections.abc import Callable, Hashable
-from contextvars import ContextVar
+from contextvars import ContextVar, copy_context
 
 from ..caches import BoundedCache, array_digest
 from .pool import start_clock
@@ -99,7 +98,7 @@ class Memo:
                 break
             running.wait()  # then stored (or failed, or already evicted: computed here)
         try:
-            value, ms = contextvars.copy_context().run(_timed, compute)
+            value, ms = copy_context().run(_timed, compute)
             self._cache.put(key, (value, ms))
             with self._lock:
                 self.computed += 1

@@ -58,8 +58,9 @@ def _pool() -> ThreadPoolExecutor:
 
 class CpuClock:
     """The CPU time of one computation: its own thread's since the clock started, and that of the items it
-    handed to the pool's other threads (:func:`parallel_map`). On a machine busy with other threads a
-    computation's wall time grows; its CPU time is what it would take alone."""
+    handed to the pool's other threads (:func:`parallel_map`), read on the thread that started it. On a
+    machine busy with other threads a computation's wall time grows; its CPU time is what it would take
+    alone."""
 
     def __init__(self) -> None:
         self._t0 = time.thread_time()

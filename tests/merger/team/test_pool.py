@@ -69,3 +69,29 @@ def _strip(d):
     if isinstance(d, float) and np.isnan(d):
         return "nan"
     return d
+
+
+def test_calls_nested_inside_pooled_items_finish_and_keep_their_order(monkeypatch):
+    """A robot's cycle (an item of the tick's batch) hands its pairs to the pool: nested batches, three deep
+    here, with every pool thread busy, finish without waiting on an item no thread has started."""
+    import threading
+    import time
+
+    monkeypatch.setenv("MERGER_THREADS", "2")
+
+    def leaf(x):
+        time.sleep(0.002)
+        return x * x
+
+    def mid(x):
+        return sum(parallel_map(leaf, range(x, x + 5)))
+
+    def top(x):
+        return parallel_map(mid, range(x, x + 4))
+
+    out = {}
+    t = threading.Thread(target=lambda: out.setdefault("r", parallel_map(top, range(6))))
+    t.start()
+    t.join(30)
+    assert not t.is_alive()
+    assert out["r"] == [[sum(v * v for v in range(m, m + 5)) for m in range(x, x + 4)] for x in range(6)]
